@@ -1,0 +1,1 @@
+"""The ``fluidnexus`` command line: thin click commands (parse -> load -> call the library -> save)."""

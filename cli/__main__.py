@@ -1,0 +1,4 @@
+"""``python -m cli`` runs the ``fluidnexus`` command."""
+from .main import main
+
+main()

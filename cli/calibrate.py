@@ -1,0 +1,205 @@
+"""``fluidnexus calibrate``: make a scene folder from camera data in one of six ways."""
+from __future__ import annotations
+
+import logging
+import os
+import tempfile
+from pathlib import Path
+
+import click
+
+from fluidnexus.atomic import write_json
+from fluidnexus.calibrate.arc import arc_rig
+from fluidnexus.calibrate.assemble import Recording, Roles, assign_roles, write_scene
+from fluidnexus.calibrate.colmap import media_by_stem, read_colmap
+from fluidnexus.calibrate.nerf import read_nerf
+from fluidnexus.calibrate.pinf import DEFAULT_SOURCE_RADIUS, pinf_dict, read_pinf, source_at_volume_foot
+from fluidnexus.errors import InputError
+from fluidnexus.samples import sample_path
+from fluidnexus.scene import SCENE_FILE, Scene, View, load_ground_truth, load_scene
+from fluidnexus.video import probe_video
+
+log = logging.getLogger("fluidnexus")
+
+PROTOCOLS = {
+    # the paper's single-video protocol: the middle camera in, the four others synthesised and scored
+    "single-view": Roles(("train02",), ("train00", "train01", "train03", "train04"),
+                         ("train00", "train01", "train03", "train04")),
+    # four real input views, the middle camera held out
+    "four-view": Roles(("train00", "train01", "train03", "train04"), (), ("train02",)),
+}
+MODES = ("from_pinf", "from_nerf", "from_colmap", "images", "video", "sample")
+
+
+def _parse_scale_distance(text: str | None):
+    if text is None:
+        return None
+    parts = text.split(",")
+    try:
+        a, b, metres = parts[0].strip(), parts[1].strip(), float(parts[2])
+        assert len(parts) == 3 and a and b and metres > 0
+    except (AssertionError, IndexError, ValueError):
+        raise InputError(None, "--scale-distance", f"expected NAME_A,NAME_B,METRES with METRES > 0, got {text!r}")
+    return a, b, metres
+
+
+@click.command()
+@click.option("--from-pinf", "from_pinf", type=click.Path(path_type=Path), help="PINF/HyFluid/ScalarFlow info.json.")
+@click.option("--from-nerf", "from_nerf", type=click.Path(path_type=Path), help="NeRF transforms.json.")
+@click.option("--from-colmap", "from_colmap", type=click.Path(path_type=Path), help="COLMAP sparse model folder.")
+@click.option("--images", multiple=True, type=click.Path(path_type=Path),
+              help="Images or videos, one per rig camera (or one hand-held sweep video): structure-from-motion.")
+@click.option("--video", type=click.Path(path_type=Path), help="A single video: build an arc rig around it.")
+@click.option("--sample", type=str, help="An embedded sample by name (scalarflow).")
+@click.option("--protocol", type=click.Choice(sorted(PROTOCOLS)), default="single-view", show_default=True,
+              help="View roles for --sample.")
+@click.option("--input", "input_names", help="Comma-separated input view names.")
+@click.option("--novel", "novel_names", help="Comma-separated novel view names.")
+@click.option("--ground-truth", "gt_names", help="Comma-separated ground-truth view names.")
+@click.option("--media", type=click.Path(path_type=Path, file_okay=False),
+              help="Folder with the footage, matched to cameras by file stem (--from-colmap, --images).")
+@click.option("--scale-distance", help="NAME_A,NAME_B,METRES: metric scale from two camera centres (--images).")
+@click.option("--fov-deg", type=float, help="Horizontal field of view of --video, degrees.")
+@click.option("--rig", type=click.Choice(["arc"]), default="arc", show_default=True, help="Rig shape for --video.")
+@click.option("--views", type=int, default=5, show_default=True, help="Cameras on the arc, the input included.")
+@click.option("--arc-deg", type=float, default=120.0, show_default=True, help="Angle the arc spans.")
+@click.option("--distance", type=float, default=1.2, show_default=True, help="Camera-to-plume-axis distance, m.")
+@click.option("--camera-height", type=float, help="Camera height above the source, m (default: source at 90%).")
+@click.option("--source-radius", type=float, default=DEFAULT_SOURCE_RADIUS, show_default=True,
+              help="Radius of the smoke inflow, m.")
+@click.option("--fps", type=float, help="Frame rate where the footage does not say (image folders).")
+@click.option("--link", is_flag=True, help="Symlink the footage into the scene instead of copying it.")
+@click.option("--to-pinf", type=click.Path(path_type=Path, dir_okay=False),
+              help="Also write the scene as a PINF info.json here (for PINF/HyFluid baselines).")
+@click.option("--overwrite", is_flag=True, help="Replace an existing scene folder.")
+@click.option("--out", required=True, type=click.Path(path_type=Path, file_okay=False), help="Scene folder to write.")
+def calibrate(out: Path, overwrite: bool, to_pinf: Path | None, **opts) -> None:
+    """Make a scene (cameras, roles, footage) from PINF, NeRF, COLMAP, images (SfM), one video, or a sample.
+
+    \b
+    fluidnexus calibrate --from-pinf info.json --input train02 \\
+        --novel train00,train01,train03,train04 --ground-truth train00,train01,train03,train04 --out scene
+    fluidnexus calibrate --sample scalarflow --protocol four-view --out scene
+    fluidnexus calibrate --images cam0.mp4 cam1.mp4 cam2.mp4 --scale-distance cam0,cam2,0.9 --out scene
+    fluidnexus calibrate --video plume.mp4 --fov-deg 60 --rig arc --views 5 --arc-deg 120 --out scene
+    """
+    chosen = [m for m in MODES if opts[m]]
+    if len(chosen) != 1:
+        raise InputError(None, "calibrate", "give exactly one of --from-pinf, --from-nerf, --from-colmap, "
+                                            f"--images, --video, --sample (got {len(chosen)})")
+    if out.exists() and any(out.iterdir()) and not overwrite:
+        raise InputError(out, None, "already exists and is not empty (use --overwrite to replace it)")
+    scene = {"from_pinf": _from_pinf, "from_nerf": _from_nerf, "from_colmap": _from_colmap,
+             "images": _from_images, "video": _from_video, "sample": _from_sample}[chosen[0]](out, opts)
+    _report(scene)
+    if to_pinf is not None:
+        write_pinf(scene.root, to_pinf)
+        log.info("PINF info.json: %s", to_pinf)
+
+
+def _roles(opts) -> Roles:
+    return Roles.parse(opts["input_names"], opts["novel_names"], opts["gt_names"])
+
+
+def _from_pinf(out: Path, opts, info: Path | None = None, roles: Roles | None = None) -> Scene:
+    info = info or opts["from_pinf"]
+    cap = read_pinf(info)
+    views, gts = assign_roles(cap.recordings, roles or _roles(opts), info)
+    return write_scene(out, cap.fps, cap.frame_count, views, gts, cap.volume,
+                       source_at_volume_foot(cap.volume, opts["source_radius"]),
+                       {"pinf": cap.kept, "imported_from": str(info)}, link=opts["link"])
+
+
+def _from_sample(out: Path, opts) -> Scene:
+    roles = _roles(opts) if opts["input_names"] else PROTOCOLS[opts["protocol"]]
+    return _from_pinf(out, opts, sample_path(opts["sample"]) / "info.json", roles)
+
+
+def _timing(source: Path, recordings, fps: float | None) -> tuple[float, int]:
+    """fps and frame count of the first recording with footage."""
+    for rec in recordings:
+        if rec.media is not None:
+            info = probe_video(rec.media)
+            rate = fps or info.fps
+            if not rate:
+                raise InputError(rec.media, "fps", "the footage does not state a frame rate; pass --fps")
+            return float(rate), info.frame_count
+    raise InputError(source, None, "no camera has footage")
+
+
+def _write_recordings(out: Path, source: Path, recordings: dict[str, Recording], opts, default_roles: Roles,
+                      volume=None, source_disk=None, extra=None, fps=None) -> Scene:
+    roles = _roles(opts) if opts["input_names"] else default_roles
+    views, gts = assign_roles(recordings, roles, source)
+    rate, count = _timing(source, [recordings[n] for n in roles.input], fps or opts["fps"])
+    return write_scene(out, rate, count, views, gts, volume, source_disk, extra, link=opts["link"])
+
+
+def _from_nerf(out: Path, opts) -> Scene:
+    recordings, fps = read_nerf(opts["from_nerf"])
+    default = Roles(tuple(n for n, r in recordings.items() if r.media is not None))
+    return _write_recordings(out, opts["from_nerf"], recordings, opts, default, fps=fps,
+                             extra={"imported_from": str(opts["from_nerf"])})
+
+
+def _from_colmap(out: Path, opts) -> Scene:
+    recordings = read_colmap(opts["from_colmap"], opts["media"])
+    default = Roles(tuple(n for n, r in recordings.items() if r.media is not None))
+    return _write_recordings(out, opts["from_colmap"], recordings, opts, default,
+                             extra={"imported_from": str(opts["from_colmap"])})
+
+
+def _from_images(out: Path, opts) -> Scene:
+    from fluidnexus.calibrate.sfm import calibrate_images
+
+    inputs = [Path(p) for p in opts["images"]]
+    with tempfile.TemporaryDirectory(prefix="fluidnexus-sfm-") as work:
+        result = calibrate_images(inputs, Path(work), _parse_scale_distance(opts["scale_distance"]))
+    log.info("structure from motion: %d cameras, %d points, mean reprojection error %.3f px",
+             len(result.cameras), result.num_points, result.mean_reprojection_error_px)
+    by_stem = media_by_stem(opts["media"]) if opts["media"] else {}
+    own = {p.stem: p for p in inputs} if len(inputs) > 1 else {}
+    recordings = {n: Recording(n, cam, by_stem.get(n, own.get(n))) for n, cam in result.cameras.items()}
+    footage = tuple(n for n, r in recordings.items() if r.media is not None)
+    default = Roles(footage, tuple(n for n in recordings if n not in footage))
+    extra = {"calibration": {"method": "pycolmap-sfm", "mean_reprojection_error_px":
+                             result.mean_reprojection_error_px, "num_points": result.num_points,
+                             "metric": result.metric, "up": result.up_axis_source}}
+    return _write_recordings(out, inputs[0], recordings, opts, default, extra=extra)
+
+
+def _from_video(out: Path, opts) -> Scene:
+    video = opts["video"]
+    if opts["fov_deg"] is None:
+        raise InputError(None, "--fov-deg", "required with --video (the camera's horizontal field of view)")
+    info = probe_video(video)
+    rig = arc_rig(info.width, info.height, opts["fov_deg"], opts["views"], opts["arc_deg"], opts["distance"],
+                  opts["camera_height"], opts["source_radius"], input_name=video.stem)
+    views = [(View(video.stem, "input", rig.input_camera), video)]
+    views += [(View(n, "novel", cam, provenance={"rig": "arc", "azimuth_deg": rig.azimuths_deg[n]}), None)
+              for n, cam in rig.novel.items()]
+    rate = opts["fps"] or info.fps
+    if not rate:
+        raise InputError(video, "fps", "the footage does not state a frame rate; pass --fps")
+    extra = {"rig": {"kind": "arc", "fov_deg": opts["fov_deg"], "views": opts["views"], "arc_deg": opts["arc_deg"],
+                     "distance": opts["distance"]}}
+    return write_scene(out, rate, info.frame_count, views, [], rig.volume, rig.source, extra, link=opts["link"])
+
+
+def write_pinf(scene_dir: Path, dest: Path) -> None:
+    """Write a scene as a PINF info.json whose video paths are relative to ``dest``'s folder."""
+    scene, gts = load_scene(scene_dir, check_videos=False), load_ground_truth(scene_dir, check_videos=False)
+    data = pinf_dict(scene, gts)
+    rel = os.path.relpath(scene.root.resolve(), dest.resolve().parent)
+    for entry in data["train_videos"] + data["test_videos"]:
+        entry["file_name"] = str(Path(rel) / entry["file_name"]) if rel != "." else entry["file_name"]
+    write_json(dest, data)
+
+
+def _report(scene: Scene) -> None:
+    gts = load_ground_truth(scene.root, check_videos=False)
+    log.info("scene: %s (%d frames at %g fps)", scene.root / SCENE_FILE, scene.frame_count, scene.fps)
+    for v in scene.views:
+        log.info("  %-8s %-12s %dx%d  %s", v.role, v.name, v.camera.width, v.camera.height, v.video or "-")
+    for g in gts:
+        log.info("  %-8s %-12s %dx%d  %s", "truth", g.name, g.camera.width, g.camera.height, g.video)

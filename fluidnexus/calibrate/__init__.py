@@ -1,0 +1,1 @@
+"""Camera import and calibration: PINF/NeRF/COLMAP importers, structure-from-motion, single-video rigs."""

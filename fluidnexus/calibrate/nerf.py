@@ -1,0 +1,64 @@
+"""NeRF ``transforms.json`` (Blender / instant-ngp / nerfstudio keys): one view per ``frames`` entry.
+
+Each entry's ``file_path`` (relative to the JSON file, extension optional) is that view's footage: a video, a
+folder of frames or a single image. Intrinsics come from ``fl_x``/``fl_y``/``cx``/``cy`` when present, else from
+``camera_angle_x``; per-frame values win over top-level ones. ``w``/``h`` default to the footage's size.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from ..errors import InputError
+from ..camera import Camera
+from ..video import probe_video
+from .assemble import Recording
+
+MEDIA_SUFFIXES = ("", ".mp4", ".avi", ".mov", ".png", ".jpg", ".jpeg")
+INTRINSIC_KEYS = ("camera_angle_x", "fl_x", "fl_y", "cx", "cy", "w", "h")
+
+
+def find_media(base: Path) -> Path | None:
+    """``base`` itself, or ``base`` with a known video/image suffix, if it exists."""
+    for suffix in MEDIA_SUFFIXES:
+        candidate = base.with_name(base.name + suffix) if suffix else base
+        if candidate.exists():
+            return candidate
+    return None
+
+
+def read_nerf(path: str | Path) -> tuple[dict[str, Recording], float | None]:
+    """Parse a transforms.json into recordings; also return its ``fps`` if it states one."""
+    path = Path(path)
+    if not path.exists():
+        raise InputError(path, None, "file not found")
+    try:
+        data = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise InputError(path, None, f"not valid JSON ({err})") from None
+    frames = data.get("frames")
+    if not isinstance(frames, list) or not frames:
+        raise InputError(path, "frames", "missing or empty")
+    recordings = {}
+    for i, frame in enumerate(frames):
+        fld = f"frames[{i}]"
+        if not isinstance(frame, dict) or "file_path" not in frame or "transform_matrix" not in frame:
+            raise InputError(path, fld, "needs file_path and transform_matrix")
+        media = find_media(path.parent / frame["file_path"])
+        name = Path(frame["file_path"]).stem
+        if name in recordings:
+            name = f"{name}_{i}"
+        intr = {k: frame.get(k, data.get(k)) for k in INTRINSIC_KEYS}
+        if intr["w"] is None or intr["h"] is None:
+            if media is None:
+                raise InputError(path, f"{fld}.file_path", f"{frame['file_path']!r} not found, and no w/h given")
+            info = probe_video(media)
+            intr["w"], intr["h"] = info.width, info.height
+        try:
+            camera = Camera.from_nerf(frame["transform_matrix"], int(intr["w"]), int(intr["h"]),
+                                      intr["camera_angle_x"], intr["fl_x"], intr["fl_y"], intr["cx"], intr["cy"])
+        except InputError as err:
+            raise err.at(path, fld) from None
+        recordings[name] = Recording(name, camera, media)
+    fps = data.get("fps")
+    return recordings, (float(fps) if fps is not None else None)

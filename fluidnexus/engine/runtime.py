@@ -1,0 +1,93 @@
+"""The one place that starts Taichi.
+
+``ti.init`` is process-global and resets every field, so the package calls it only through :func:`init`,
+never at import time. Library code receives an already-resolved arch name; only the CLI turns
+``--arch auto`` into ``cpu`` or ``cuda`` (:func:`resolve_arch`).
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+os.environ.setdefault("ENABLE_TAICHI_HEADER_PRINT", "False")
+import taichi as ti  # noqa: E402
+
+ARCHES = ("cpu", "cuda")
+
+
+@dataclass(frozen=True)
+class RuntimeConfig:
+    """How Taichi was started: arch ("cpu"|"cuda"), float precision ("f32"|"f64"), bounds checks."""
+
+    arch: str = "cpu"
+    precision: str = "f32"
+    debug: bool = False
+
+
+_current: RuntimeConfig | None = None
+
+
+def cache_dir() -> Path:
+    """Taichi's offline kernel cache (``$FLUIDNEXUS_CACHE`` or ``~/.cache/fluidnexus/taichi``)."""
+    root = os.environ.get("FLUIDNEXUS_CACHE", str(Path.home() / ".cache" / "fluidnexus"))
+    return Path(root) / "taichi"
+
+
+def init(arch: str = "cpu", precision: str = "f32", debug: bool = False) -> RuntimeConfig:
+    """Start Taichi once per process; a second call with the same settings is a no-op.
+
+    A call with different settings restarts Taichi, which invalidates every existing field.
+
+    Args:
+        arch: "cpu" or "cuda" (resolve "auto" with :func:`resolve_arch` first).
+        precision: "f32" or "f64"; the engine's real-valued fields and literals use it.
+        debug: Taichi's bounds-checked debug mode (slow; for tests).
+    """
+    global _current
+    if arch not in ARCHES:
+        raise ValueError(f"arch must be one of {ARCHES}, got {arch!r}")
+    if precision not in ("f32", "f64"):
+        raise ValueError(f"precision must be 'f32' or 'f64', got {precision!r}")
+    cfg = RuntimeConfig(arch, precision, debug)
+    if _current == cfg:
+        return cfg
+    if _current is not None:
+        ti.reset()
+    ti.init(
+        arch=ti.cuda if arch == "cuda" else ti.cpu,
+        default_fp=ti.f64 if precision == "f64" else ti.f32,
+        debug=debug,
+        offline_cache=True,
+        offline_cache_file_path=str(cache_dir()),
+        log_level=ti.WARN,
+        random_seed=0,
+    )
+    _current = cfg
+    return cfg
+
+
+def current() -> RuntimeConfig:
+    """The running configuration; raises if :func:`init` has not been called."""
+    if _current is None:
+        raise RuntimeError("fluidnexus.engine.init() has not been called")
+    return _current
+
+
+def real():
+    """The Taichi float type of the running precision (use for every real-valued field)."""
+    return ti.f64 if current().precision == "f64" else ti.f32
+
+
+def resolve_arch(arch: str) -> str:
+    """Turn "auto" into "cuda" when a CUDA device is usable, else "cpu"; pass "cpu"/"cuda" through."""
+    if arch != "auto":
+        if arch not in ARCHES:
+            raise ValueError(f"arch must be auto, cpu or cuda, got {arch!r}")
+        return arch
+    try:
+        import torch
+
+        return "cuda" if torch.cuda.is_available() else "cpu"
+    except Exception:  # pragma: no cover - torch is a dependency, but a broken CUDA setup must not crash
+        return "cpu"

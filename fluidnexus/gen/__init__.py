@@ -1,0 +1,1 @@
+"""Generative backends (view synthesisers, video refiners). Heavy imports happen inside each backend."""

@@ -1,0 +1,280 @@
+"""Scenes: a folder with ``scene.json`` (format ``fluidnexus-scene/1``, see docs/scene-format.md).
+
+Two loaders, on purpose:
+
+- :func:`load_scene` is the pipeline's loader (synth, refine, recon, predict, interact). Its :class:`Scene` holds
+  the ``input`` and ``novel`` views only; ground-truth videos are not reachable from it.
+- :func:`load_ground_truth` is for evaluation and comparison renders only.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .atomic import write_json
+from .camera import Camera
+from .errors import InputError, require_finite, require_positive
+
+FORMAT = "fluidnexus-scene/1"
+SCENE_FILE = "scene.json"
+ROLES = ("input", "novel")
+
+
+@dataclass(frozen=True)
+class Volume:
+    """Axis-aligned box in world metres."""
+
+    min: tuple[float, float, float]
+    max: tuple[float, float, float]
+
+    @property
+    def center(self) -> np.ndarray:
+        return 0.5 * (np.asarray(self.min) + np.asarray(self.max))
+
+    @property
+    def bottom_center(self) -> np.ndarray:
+        c = self.center
+        c[1] = self.min[1]
+        return c
+
+    def to_dict(self) -> dict:
+        return {"min": list(self.min), "max": list(self.max)}
+
+
+@dataclass(frozen=True)
+class Source:
+    """The smoke inflow: a horizontal disk of ``radius`` metres centred at ``center``."""
+
+    center: tuple[float, float, float]
+    radius: float
+
+    def to_dict(self) -> dict:
+        return {"center": list(self.center), "radius": self.radius}
+
+
+@dataclass(frozen=True)
+class View:
+    """A camera of the scene with its role and its video (relative to the scene folder, or None)."""
+
+    name: str
+    role: str
+    camera: Camera
+    video: str | None = None
+    provenance: dict | None = None
+
+    def to_dict(self) -> dict:
+        out = {"name": self.name, "role": self.role, "camera": self.camera.to_dict(), "video": self.video}
+        if self.provenance:
+            out["provenance"] = self.provenance
+        return out
+
+
+@dataclass(frozen=True)
+class GroundTruth:
+    """A real held-out video with its camera; read only by eval and comparison renders."""
+
+    name: str
+    camera: Camera
+    video: str
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "camera": self.camera.to_dict(), "video": self.video}
+
+
+@dataclass(frozen=True)
+class Scene:
+    """What the pipeline may see of a scene: fps, frame count, bounds, source and the input/novel views."""
+
+    root: Path
+    fps: float
+    frame_count: int
+    views: tuple[View, ...]
+    volume: Volume | None = None
+    source: Source | None = None
+    extra: dict = field(default_factory=dict)
+
+    def view(self, name: str) -> View:
+        for v in self.views:
+            if v.name == name:
+                return v
+        raise InputError(self.root / SCENE_FILE, "views", f"unknown view {name!r}; known: {self.view_names()}")
+
+    def view_names(self) -> list[str]:
+        return [v.name for v in self.views]
+
+    def with_role(self, role: str) -> tuple[View, ...]:
+        return tuple(v for v in self.views if v.role == role)
+
+    def usable_views(self) -> tuple[View, ...]:
+        """Views with footage: every ``input`` view plus ``novel`` views that have a video."""
+        return tuple(v for v in self.views if v.video is not None)
+
+    def video_path(self, view: View) -> Path:
+        if view.video is None:
+            raise InputError(self.root / SCENE_FILE, f"views[{view.name}].video", "this view has no video")
+        return self.root / view.video
+
+
+# ---- reading --------------------------------------------------------------------------------------------
+def _read_json(path: Path) -> dict:
+    scene_file = path / SCENE_FILE if path.is_dir() else path
+    if not scene_file.exists():
+        raise InputError(scene_file, None, "file not found")
+    try:
+        data = json.loads(scene_file.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise InputError(scene_file, None, f"not valid JSON ({err})") from None
+    if not isinstance(data, dict):
+        raise InputError(scene_file, None, "expected a JSON object")
+    if data.get("format") != FORMAT:
+        raise InputError(scene_file, "format", f"unknown format tag {data.get('format')!r}; expected {FORMAT!r}")
+    return data
+
+
+def _scene_file(path: str | Path) -> tuple[Path, Path]:
+    path = Path(path)
+    scene_file = path / SCENE_FILE if path.is_dir() or path.suffix != ".json" else path
+    return scene_file.parent, scene_file
+
+
+def _triple(value, path, fld: str) -> tuple[float, float, float]:
+    arr = require_finite(value, path, fld)
+    if arr.shape != (3,):
+        raise InputError(path, fld, f"expected 3 numbers, got {value!r}")
+    return tuple(float(x) for x in arr)
+
+
+def _parse_volume(data, path) -> Volume | None:
+    if data is None:
+        return None
+    if not isinstance(data, dict) or "min" not in data or "max" not in data:
+        raise InputError(path, "volume", "expected {min: [x, y, z], max: [x, y, z]}")
+    lo, hi = _triple(data["min"], path, "volume.min"), _triple(data["max"], path, "volume.max")
+    if not all(a < b for a, b in zip(lo, hi)):
+        raise InputError(path, "volume", f"min {lo} must be below max {hi} on every axis")
+    return Volume(lo, hi)
+
+
+def _parse_source(data, path) -> Source | None:
+    if data is None:
+        return None
+    if not isinstance(data, dict) or "center" not in data or "radius" not in data:
+        raise InputError(path, "source", "expected {center: [x, y, z], radius: r}")
+    return Source(_triple(data["center"], path, "source.center"),
+                  require_positive(data["radius"], path, "source.radius"))
+
+
+def _parse_views(items, path, key: str) -> list[dict]:
+    if not isinstance(items, list):
+        raise InputError(path, key, "expected a list")
+    names = set()
+    for i, item in enumerate(items):
+        if not isinstance(item, dict) or not isinstance(item.get("name"), str) or not item["name"]:
+            raise InputError(path, f"{key}[{i}].name", "missing or not a string")
+        if item["name"] in names:
+            raise InputError(path, f"{key}[{i}].name", f"duplicate view name {item['name']!r}")
+        names.add(item["name"])
+    return items
+
+
+def load_scene(path: str | Path, check_videos: bool = True) -> Scene:
+    """Load the pipeline's view of a scene (no ground truth).
+
+    Args:
+        path: the scene folder or its scene.json.
+        check_videos: probe every video and require the scene's frame count and one shared resolution that
+            matches the cameras.
+    Raises:
+        InputError naming scene.json (or a video) and the field.
+    """
+    root, scene_file = _scene_file(path)
+    data = _read_json(scene_file)
+    fps = require_positive(data.get("fps", 0), scene_file, "fps")
+    frame_count = data.get("frame_count")
+    if isinstance(frame_count, bool) or not isinstance(frame_count, int) or frame_count <= 0:
+        raise InputError(scene_file, "frame_count", f"must be an integer > 0, got {frame_count!r}")
+    views = []
+    for i, item in enumerate(_parse_views(data.get("views"), scene_file, "views")):
+        role = item.get("role")
+        if role not in ROLES:
+            raise InputError(scene_file, f"views[{i}].role", f"must be one of {ROLES}, got {role!r}")
+        video = item.get("video")
+        if video is not None and not isinstance(video, str):
+            raise InputError(scene_file, f"views[{i}].video", "must be a path string or null")
+        camera = Camera.from_dict(item.get("camera"), scene_file, f"views[{i}].camera")
+        views.append(View(item["name"], role, camera, video, item.get("provenance")))
+    if not views:
+        raise InputError(scene_file, "views", "the scene has no views")
+    scene = Scene(root, fps, frame_count, tuple(views), _parse_volume(data.get("volume"), scene_file),
+                  _parse_source(data.get("source"), scene_file), data.get("extra", {}))
+    if check_videos:
+        check_media(root, scene_file, frame_count,
+                    [(f"views[{i}].video", v.video, v.camera) for i, v in enumerate(views) if v.video])
+    return scene
+
+
+def load_ground_truth(path: str | Path, check_videos: bool = True) -> tuple[GroundTruth, ...]:
+    """The held-out real videos of a scene (for ``eval`` and ``render --compare`` only)."""
+    root, scene_file = _scene_file(path)
+    data = _read_json(scene_file)
+    out = []
+    for i, item in enumerate(_parse_views(data.get("ground_truth", []), scene_file, "ground_truth")):
+        if not isinstance(item.get("video"), str):
+            raise InputError(scene_file, f"ground_truth[{i}].video", "missing: a ground-truth entry needs a video")
+        camera = Camera.from_dict(item.get("camera"), scene_file, f"ground_truth[{i}].camera")
+        out.append(GroundTruth(item["name"], camera, item["video"]))
+    if check_videos and out:
+        check_media(root, scene_file, int(data["frame_count"]),
+                    [(f"ground_truth[{i}].video", g.video, g.camera) for i, g in enumerate(out)])
+    return tuple(out)
+
+
+def check_media(root: Path, scene_file: Path, frame_count: int, entries) -> None:
+    """Require every video to exist, decode, have ``frame_count`` frames and share one resolution that matches
+    its camera. ``entries`` is a list of ``(field, relative_path, camera)``."""
+    from .video import probe_video
+
+    first = None
+    for fld, rel, camera in entries:
+        video = root / rel
+        if not video.exists():
+            raise InputError(video, None, f"file not found (referenced by {scene_file} field {fld})")
+        info = probe_video(video)
+        if info.frame_count != frame_count:
+            raise InputError(video, "frame_count",
+                             f"has {info.frame_count} frames, but {scene_file.name} says frame_count={frame_count}")
+        if (info.width, info.height) != (camera.width, camera.height):
+            raise InputError(video, "resolution",
+                             f"is {info.width}x{info.height}, but its camera ({fld}) is "
+                             f"{camera.width}x{camera.height}")
+        if first is None:
+            first = (rel, info.width, info.height)
+        elif (info.width, info.height) != first[1:]:
+            raise InputError(video, "resolution",
+                             f"is {info.width}x{info.height}, but {first[0]} is {first[1]}x{first[2]}; "
+                             "all videos of a scene share one resolution")
+
+
+# ---- writing --------------------------------------------------------------------------------------------
+def scene_dict(scene: Scene, ground_truth: tuple[GroundTruth, ...] = ()) -> dict:
+    """The JSON document of a scene (with its ground truth)."""
+    out = {"format": FORMAT, "fps": scene.fps, "frame_count": scene.frame_count}
+    if scene.volume is not None:
+        out["volume"] = scene.volume.to_dict()
+    if scene.source is not None:
+        out["source"] = scene.source.to_dict()
+    out["views"] = [v.to_dict() for v in scene.views]
+    out["ground_truth"] = [g.to_dict() for g in ground_truth]
+    if scene.extra:
+        out["extra"] = scene.extra
+    return out
+
+
+def save_scene(scene: Scene, ground_truth: tuple[GroundTruth, ...] = (), root: str | Path | None = None) -> Path:
+    """Write ``scene.json`` atomically into ``root`` (default ``scene.root``); return its path."""
+    dest = Path(root if root is not None else scene.root) / SCENE_FILE
+    write_json(dest, scene_dict(scene, ground_truth))
+    return dest
