@@ -278,3 +278,13 @@ def save_scene(scene: Scene, ground_truth: tuple[GroundTruth, ...] = (), root: s
     dest = Path(root if root is not None else scene.root) / SCENE_FILE
     write_json(dest, scene_dict(scene, ground_truth))
     return dest
+
+
+def save_views(scene_dir: str | Path, views: tuple[View, ...]) -> Path:
+    """Rewrite the views of an existing scene (e.g. after ``synth`` gave novel views a video), keeping its
+    ground truth and every other field; atomic."""
+    _, scene_file = _scene_file(scene_dir)
+    data = _read_json(scene_file)
+    data["views"] = [v.to_dict() for v in views]
+    write_json(scene_file, data)
+    return scene_file

@@ -114,3 +114,18 @@ def test_ground_truth_checked_by_its_loader(scene_dir, make_video):
     load_scene(scene_dir)  # the pipeline never looks at it
     with pytest.raises(InputError, match="frame_count"):
         load_ground_truth(scene_dir)
+
+
+def test_save_views_keeps_ground_truth(scene_dir, make_video):
+    from dataclasses import replace
+
+    from fluidnexus.scene import save_views
+
+    scene = load_scene(scene_dir)
+    make_video(scene_dir / "videos" / "b.mp4")
+    novel = replace(scene.view("b"), video="videos/b.mp4", provenance={"method": "test"})
+    save_views(scene_dir, (scene.view("a"), novel))
+    again = load_scene(scene_dir)
+    assert [v.name for v in again.usable_views()] == ["a", "b"]
+    assert again.view("b").provenance == {"method": "test"}
+    assert [g.name for g in load_ground_truth(scene_dir)] == ["b"]
