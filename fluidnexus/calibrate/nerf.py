@@ -1,7 +1,7 @@
 """NeRF ``transforms.json`` (Blender / instant-ngp / nerfstudio keys): one view per ``frames`` entry.
 
-Each entry's ``file_path`` (relative to the JSON file, extension optional) is that view's footage: a video, a
-folder of frames or a single image. Intrinsics come from ``fl_x``/``fl_y``/``cx``/``cy`` when present, else from
+Each entry's ``file_path`` (relative to the JSON file, extension optional) is that view's footage: a video file
+or a folder of frames. Intrinsics come from ``fl_x``/``fl_y``/``cx``/``cy`` when present, else from
 ``camera_angle_x``; per-frame values win over top-level ones. ``w``/``h`` default to the footage's size.
 """
 from __future__ import annotations
@@ -11,15 +11,15 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..camera import Camera
-from ..video import probe_video
+from ..video import VIDEO_SUFFIXES, probe_video
 from .assemble import Recording
 
-MEDIA_SUFFIXES = ("", ".mp4", ".avi", ".mov", ".png", ".jpg", ".jpeg")
+MEDIA_SUFFIXES = ("",) + VIDEO_SUFFIXES
 INTRINSIC_KEYS = ("camera_angle_x", "fl_x", "fl_y", "cx", "cy", "w", "h")
 
 
 def find_media(base: Path) -> Path | None:
-    """``base`` itself, or ``base`` with a known video/image suffix, if it exists."""
+    """``base`` itself (a video file or a frame folder), or ``base`` with a video suffix, if it exists."""
     for suffix in MEDIA_SUFFIXES:
         candidate = base.with_name(base.name + suffix) if suffix else base
         if candidate.exists():
