@@ -17,7 +17,7 @@ from fluidnexus.calibrate.pinf import DEFAULT_SOURCE_RADIUS, pinf_dict, read_pin
 from fluidnexus.errors import InputError
 from fluidnexus.samples import sample_path
 from fluidnexus.scene import SCENE_FILE, Scene, View, load_ground_truth, load_scene
-from fluidnexus.video import probe_video
+from fluidnexus.video import VIDEO_SUFFIXES, probe_video
 
 log = logging.getLogger("fluidnexus")
 
@@ -47,8 +47,9 @@ def _parse_scale_distance(text: str | None):
 @click.option("--from-pinf", "from_pinf", type=click.Path(path_type=Path), help="PINF/HyFluid/ScalarFlow info.json.")
 @click.option("--from-nerf", "from_nerf", type=click.Path(path_type=Path), help="NeRF transforms.json.")
 @click.option("--from-colmap", "from_colmap", type=click.Path(path_type=Path), help="COLMAP sparse model folder.")
-@click.option("--images", multiple=True, type=click.Path(path_type=Path),
-              help="Images or videos, one per rig camera (or one hand-held sweep video): structure-from-motion.")
+@click.option("--images", is_flag=True,
+              help="Structure from motion on the PATHS that follow: images or videos, one per rig camera, or one "
+                   "hand-held sweep video.")
 @click.option("--video", type=click.Path(path_type=Path), help="A single video: build an arc rig around it.")
 @click.option("--sample", type=str, help="An embedded sample by name (scalarflow).")
 @click.option("--protocol", type=click.Choice(sorted(PROTOCOLS)), default="single-view", show_default=True,
@@ -73,7 +74,8 @@ def _parse_scale_distance(text: str | None):
               help="Also write the scene as a PINF info.json here (for PINF/HyFluid baselines).")
 @click.option("--overwrite", is_flag=True, help="Replace an existing scene folder.")
 @click.option("--out", required=True, type=click.Path(path_type=Path, file_okay=False), help="Scene folder to write.")
-def calibrate(out: Path, overwrite: bool, to_pinf: Path | None, **opts) -> None:
+@click.argument("paths", nargs=-1, type=click.Path(path_type=Path))
+def calibrate(out: Path, overwrite: bool, to_pinf: Path | None, paths: tuple[Path, ...], **opts) -> None:
     """Make a scene (cameras, roles, footage) from PINF, NeRF, COLMAP, images (SfM), one video, or a sample.
 
     \b
@@ -81,8 +83,12 @@ def calibrate(out: Path, overwrite: bool, to_pinf: Path | None, **opts) -> None:
         --novel train00,train01,train03,train04 --ground-truth train00,train01,train03,train04 --out scene
     fluidnexus calibrate --sample scalarflow --protocol four-view --out scene
     fluidnexus calibrate --images cam0.mp4 cam1.mp4 cam2.mp4 --scale-distance cam0,cam2,0.9 --out scene
+    fluidnexus calibrate --images cam*.png --media footage/ --out scene
     fluidnexus calibrate --video plume.mp4 --fov-deg 60 --rig arc --views 5 --arc-deg 120 --out scene
     """
+    if bool(paths) != opts["images"]:
+        raise InputError(None, "--images", "list the images or videos after --images (and only there)")
+    opts["paths"] = paths
     chosen = [m for m in MODES if opts[m]]
     if len(chosen) != 1:
         raise InputError(None, "calibrate", "give exactly one of --from-pinf, --from-nerf, --from-colmap, "
@@ -152,15 +158,20 @@ def _from_colmap(out: Path, opts) -> Scene:
 def _from_images(out: Path, opts) -> Scene:
     from fluidnexus.calibrate.sfm import calibrate_images
 
-    inputs = [Path(p) for p in opts["images"]]
+    inputs = list(opts["paths"])
     with tempfile.TemporaryDirectory(prefix="fluidnexus-sfm-") as work:
         result = calibrate_images(inputs, Path(work), _parse_scale_distance(opts["scale_distance"]))
     log.info("structure from motion: %d cameras, %d points, mean reprojection error %.3f px",
              len(result.cameras), result.num_points, result.mean_reprojection_error_px)
+    # footage: --media by stem, else a rig camera's own video; a sweep's frames and still images have none
     by_stem = media_by_stem(opts["media"]) if opts["media"] else {}
-    own = {p.stem: p for p in inputs} if len(inputs) > 1 else {}
+    own = {p.stem: p for p in inputs if p.suffix.lower() in VIDEO_SUFFIXES} if len(inputs) > 1 else {}
     recordings = {n: Recording(n, cam, by_stem.get(n, own.get(n))) for n, cam in result.cameras.items()}
     footage = tuple(n for n, r in recordings.items() if r.media is not None)
+    if not footage and not opts["input_names"]:
+        raise InputError(opts["media"] or inputs[0], "--media",
+                         "the cameras are calibrated but none has footage: pass --media DIR holding one video "
+                         "per camera, named like its image (e.g. cam0.mp4 for cam0.png)")
     default = Roles(footage, tuple(n for n in recordings if n not in footage))
     extra = {"calibration": {"method": "pycolmap-sfm", "mean_reprojection_error_px":
                              result.mean_reprojection_error_px, "num_points": result.num_points,
