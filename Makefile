@@ -1,18 +1,22 @@
-# Quick start: `make demo` and `make test`. Both create .venv and install the package when needed.
+# Quick start: `make demo` and `make test`. Both create .venv and install the package when needed
+# (with the test and gen extras, so the tiny generative-model tests run too).
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 PYTEST_ARGS ?=
 
-.PHONY: test setup clean
+.PHONY: demo test setup clean
 
 setup: $(STAMP)
 
 $(STAMP): setup.cfg pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet -e '.[test,gen]'
 	touch $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/fluidnexus demo --overwrite
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q $(PYTEST_ARGS)

@@ -55,3 +55,10 @@ def require_positive(value: float, path, field: str) -> float:
     if not math.isfinite(v) or v <= 0:
         raise InputError(path, field, f"must be a finite number > 0, got {value!r}")
     return v
+
+
+class RunError(Exception):
+    """A long run stopped on its own (divergence, a full disk); the message says what was kept.
+
+    The CLI prints it as one line and exits with code 1.
+    """

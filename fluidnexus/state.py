@@ -32,6 +32,8 @@ class FrameState:
         visual_scales: [M, 3] Gaussian standard deviations s along their axes, metres.
         visual_rotations: [M, 4] unit quaternions r (w, x, y, z), body to world.
         visual_opacities: [M] opacities o in [0, 1].
+        physical_ages: [N] seconds since each physical particle left the source (for a decaying buoyancy);
+            None reads as zeros.
     """
 
     frame: int
@@ -42,6 +44,7 @@ class FrameState:
     visual_scales: np.ndarray
     visual_rotations: np.ndarray
     visual_opacities: np.ndarray
+    physical_ages: np.ndarray | None = None
 
     @property
     def num_physical(self) -> int:
@@ -56,7 +59,15 @@ class FrameState:
         return int(self.visual_colors.shape[1])
 
     def arrays(self) -> dict[str, np.ndarray]:
-        return {name: getattr(self, name) for name in (*FIELDS, "visual_colors")}
+        out = {name: getattr(self, name) for name in (*FIELDS, "visual_colors")}
+        out["physical_ages"] = self.ages()
+        return out
+
+    def ages(self) -> np.ndarray:
+        """[N] particle ages in seconds (zeros when not recorded)."""
+        if self.physical_ages is None:
+            return np.zeros(self.num_physical, np.float32)
+        return self.physical_ages
 
 
 def frame_path(run_dir: str | Path, frame: int) -> Path:
@@ -106,3 +117,6 @@ def validate(state: FrameState, path=None) -> None:
         raise InputError(path, "visual_colors", f"expected shape ({m}, 1 or 3), got {colors.shape}")
     if not np.all(np.isfinite(colors)):
         raise InputError(path, "visual_colors", "contains non-finite values")
+    ages = state.ages()
+    if np.shape(ages) != (n,) or not np.all(np.isfinite(ages)):
+        raise InputError(path, "physical_ages", f"expected {n} finite ages, got shape {np.shape(ages)}")

@@ -74,6 +74,11 @@ def current() -> RuntimeConfig:
     return _current
 
 
+def is_running(arch: str) -> bool:
+    """True when :func:`init` has started the engine on ``arch`` in this process."""
+    return _current is not None and _current.arch == arch
+
+
 def real():
     """The Taichi float type of the running precision (use for every real-valued field)."""
     return ti.f64 if current().precision == "f64" else ti.f32

@@ -1,0 +1,25 @@
+"""Options shared by several commands."""
+from __future__ import annotations
+
+import click
+
+from fluidnexus import engine
+from fluidnexus.errors import InputError
+
+arch_option = click.option("--arch", type=click.Choice(["auto", "cpu", "cuda"]), default="auto", show_default=True,
+                           help="Where the Taichi engine runs.")
+
+
+def start_engine(arch: str) -> str:
+    """Resolve ``--arch`` and start the engine (float32); returns the arch used.
+
+    An engine already running on that arch in this process (e.g. under the test suite) is used as it is.
+    """
+    resolved = engine.resolve_arch(arch)
+    try:
+        if engine.is_running(resolved):
+            return resolved
+        engine.init(arch=resolved)
+    except RuntimeError as err:  # e.g. --arch cuda on a machine without a usable GPU
+        raise InputError(None, "--arch", f"cannot start the engine on {resolved}: {err}") from None
+    return resolved

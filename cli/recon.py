@@ -1,0 +1,93 @@
+"""``fluidnexus recon``: reconstruct the smoke of a scene into a run folder."""
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+from pathlib import Path
+
+import click
+
+from fluidnexus.errors import InputError
+from fluidnexus.scene import load_scene
+from fluidnexus.video import parse_frame_range
+
+from .options import arch_option, start_engine
+
+log = logging.getLogger("fluidnexus")
+SPECIAL = {"frames", "channels", "resolution"}
+
+
+def _settings_options(func):
+    """One ``--name`` option per reconstruction setting (weights, iterations, learning rates, ...)."""
+    from fluidnexus.recon.config import ReconConfig
+
+    for f in reversed(dataclasses.fields(ReconConfig)):
+        if f.name in SPECIAL:
+            continue
+        func = click.option(f"--{f.name.replace('_', '-')}", f.name, type=type(f.default), default=None,
+                            help=f"default {f.default}")(func)
+    return func
+
+
+def resolve_resolution(text: str, scene) -> float:
+    """``auto`` = the long side becomes at most 480 px (0.25 for 1080x1920 captures, 1.0 for the sample)."""
+    if text == "auto":
+        cam = scene.views[0].camera
+        return min(1.0, 480.0 / max(cam.width, cam.height))
+    try:
+        return float(text)
+    except ValueError:
+        raise InputError(None, "--resolution", f"expected a number or 'auto', got {text!r}") from None
+
+
+def load_overrides(path: Path | None) -> dict:
+    if path is None:
+        return {}
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as err:
+        raise InputError(path, None, f"cannot read settings ({err})") from None
+    return data.get("recon", data)
+
+
+@click.command()
+@click.argument("scene_dir", type=click.Path(path_type=Path))
+@click.option("--out", required=True, type=click.Path(path_type=Path, file_okay=False), help="Run folder.")
+@click.option("--frames", "frames_text", default=None, help="Frame range A:B (half-open), default all.")
+@click.option("--resolution", default="auto", show_default=True,
+              help="Image scale of the scene's videos, or 'auto' (long side 480 px).")
+@click.option("--channels", type=click.Choice(["gray", "rgb"]), default="gray", show_default=True)
+@click.option("--config", "config_file", type=click.Path(path_type=Path, dir_okay=False),
+              help="JSON settings (a run's config.json works); command-line values win.")
+@click.option("--model", "model_file", type=click.Path(path_type=Path, dir_okay=False),
+              help="A model.json (e.g. from `fluidnexus diagnose`) instead of the paper's ScalarFlow gas.")
+@click.option("--resume", is_flag=True, help="Continue an interrupted run in --out.")
+@arch_option
+@_settings_options
+def recon(scene_dir: Path, out: Path, frames_text, resolution, channels, config_file, model_file, resume, arch,
+          **settings) -> None:
+    """Reconstruct physical and visual particles of SCENE_DIR frame by frame (FluidNexus Alg. S1)."""
+    from fluidnexus.engine import ModelConfig
+    from fluidnexus.recon.config import ReconConfig
+    from fluidnexus.recon.run import default_setup, reconstruct
+
+    scene = load_scene(scene_dir)
+    values = load_overrides(config_file)
+    values.update({k: v for k, v in settings.items() if v is not None})
+    if frames_text is not None:
+        rng = parse_frame_range(frames_text)
+        values["frames"] = (rng.start or 0, rng.stop)
+    values["resolution"] = resolve_resolution(resolution, scene)
+    values["channels"] = 1 if channels == "gray" else 3
+    cfg = ReconConfig.from_dict(values, config_file)
+    model = None
+    if model_file is not None:
+        try:
+            model = ModelConfig.from_dict(json.loads(model_file.read_text()).get("model", {}))
+        except (OSError, ValueError) as err:
+            raise InputError(model_file, "model", str(err)) from None
+    start_engine(arch)
+    summary = reconstruct(scene, out, default_setup(scene, cfg, model), resume=resume)
+    log.info("reconstructed frames %d:%d into %s (%.1f s per frame)", *summary["frames"], out,
+             summary["seconds_per_frame"])

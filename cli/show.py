@@ -1,0 +1,124 @@
+"""``fluidnexus render`` and ``fluidnexus eval``: look at a run and score it."""
+from __future__ import annotations
+
+import json
+import logging
+from pathlib import Path
+
+import click
+
+from fluidnexus.errors import InputError
+
+from .options import arch_option, start_engine
+
+log = logging.getLogger("fluidnexus")
+
+
+def _cameras(run, scene, which: str):
+    """(name, camera at the run's resolution, ground-truth video or None) for ``--views``."""
+    from fluidnexus.scene import load_ground_truth
+
+    truths = {g.name: g for g in load_ground_truth(scene.root)}
+    views = {v.name: v for v in scene.views}
+    if which == "all":
+        names = list(views)
+    elif which == "ground-truth":
+        names = list(truths)
+    else:
+        names = [n.strip() for n in which.split(",") if n.strip()]
+    out = []
+    for name in names:
+        if name in truths:
+            g = truths[name]
+            out.append((name, g.camera.scaled(run.resolution), scene.root / g.video))
+        elif name in views:
+            out.append((name, views[name].camera.scaled(run.resolution), None))
+        else:
+            raise InputError(scene.root / "scene.json", "--views",
+                             f"unknown view {name!r}; known: {sorted(views) + sorted(truths)}")
+    return out
+
+
+@click.command()
+@click.argument("run_dir", type=click.Path(path_type=Path))
+@click.option("--out", required=True, type=click.Path(path_type=Path, file_okay=False))
+@click.option("--views", "which", default="all", show_default=True,
+              help="Comma-separated view names, 'all' (the scene's views) or 'ground-truth'.")
+@click.option("--orbit", type=int, default=0, help="Also write orbit.mp4: N frames, one turn around the volume.")
+@click.option("--compare", is_flag=True, help="Put the real ground-truth video beside the render.")
+@click.option("--png", is_flag=True, help="Also write PNG frames.")
+@arch_option
+def render(run_dir: Path, out: Path, which: str, orbit: int, compare: bool, png: bool, arch: str) -> None:
+    """Write MP4 videos of a run from the scene's cameras or an orbit around the volume."""
+    from fluidnexus.frames import orbit_cameras, render_state, side_by_side
+    from fluidnexus.progress import track
+    from fluidnexus.runs import open_run
+    from fluidnexus.video import read_video, write_frames, write_video
+
+    run = open_run(run_dir)
+    scene = run.scene(check_videos=False)
+    if orbit < 0:
+        raise InputError(None, "--orbit", f"must be >= 0, got {orbit}")
+    start_engine(arch)
+    frames = run.frames
+    states = [run.state(t) for t in frames]
+    for name, cam, truth in track(_cameras(run, scene, "ground-truth" if compare and which == "all" else which),
+                                  "render"):
+        video = [render_state(s, cam) for s in states]
+        if compare:
+            if truth is None:
+                raise InputError(scene.root / "scene.json", "--compare", f"view {name!r} has no ground-truth video")
+            real = read_video(truth, frames=slice(frames[0], frames[-1] + 1), size=(cam.width, cam.height),
+                              channels=run.channels)
+            video = [side_by_side(r, real[t - frames[0]]) for r, t in zip(video, frames)]
+            name = f"{name}_compare"
+        write_video(out / f"{name}.mp4", video, fps=scene.fps)
+        if png:
+            write_frames(out / name, video)
+        log.info("wrote %s", out / f"{name}.mp4")
+    if orbit:
+        if scene.volume is None:
+            raise InputError(scene.root / "scene.json", "volume", "--orbit needs the scene's volume")
+        cams = orbit_cameras(scene.volume, scene.views[0].camera.scaled(run.resolution), orbit)
+        picks = [states[round(k * (len(states) - 1) / max(1, orbit - 1))] for k in range(orbit)]
+        write_video(out / "orbit.mp4", [render_state(s, c) for s, c in zip(picks, cams)], fps=scene.fps)
+        log.info("wrote %s", out / "orbit.mp4")
+
+
+@click.command("eval")
+@click.argument("run_dir", type=click.Path(path_type=Path))
+@click.option("--json", "json_file", type=click.Path(path_type=Path, dir_okay=False), help="Write the scores here.")
+@click.option("--lpips-weights", type=click.Path(path_type=Path, file_okay=False),
+              help="Folder with local LPIPS AlexNet weights (see docs/evaluation.md); LPIPS is skipped without it.")
+@arch_option
+def evaluate(run_dir: Path, json_file: Path | None, lpips_weights: Path | None, arch: str) -> None:
+    """Score a run against the scene's ground-truth videos: novel views, re-simulation, divergence."""
+    from fluidnexus.atomic import write_json
+    from fluidnexus.evaluation import evaluate as score
+    from fluidnexus.runs import open_run
+
+    run = open_run(run_dir)
+    weights = None
+    if lpips_weights is not None:
+        from fluidnexus.lpips import load_weights
+
+        weights = load_weights(lpips_weights)
+    else:
+        log.info("LPIPS skipped: no --lpips-weights folder given")
+    start_engine(arch)
+    result = score(run, weights)
+    if json_file is not None:
+        write_json(json_file, result)
+    nv, rs, dv = result["novel_view"], result["resimulation"], result["divergence"]
+    res = result["resolution"]
+    click.echo(f"frames {result['frames'][0]}:{result['frames'][1]} at {res['width']}x{res['height']}")
+    for name, s in nv["per_view"].items():
+        click.echo(f"  {name:10s} PSNR {s['psnr']:.2f} dB  SSIM {s['ssim']:.4f}"
+                   + (f"  LPIPS {s['lpips']:.4f}" if s["lpips"] is not None else ""))
+    click.echo(f"novel views    PSNR {nv['psnr']:.2f} dB  SSIM {nv['ssim']:.4f}")
+    click.echo(f"re-simulation  PSNR {rs['psnr']:.2f} dB  SSIM {rs['ssim']:.4f}")
+    in_smoke = dv["mean_abs_in_smoke"]
+    click.echo(f"divergence     mean |div V| {dv['mean_abs']:.4g} 1/s"
+               + (f", in smoke {in_smoke:.4g} 1/s" if in_smoke is not None else ""))
+    if json_file is not None:
+        log.info("scores: %s", json_file)

@@ -1,0 +1,73 @@
+"""``fluidnexus synth``: write a video for every ``novel`` view from the input view (paper Sec. 3.1, Eq. 1)."""
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import click
+import numpy as np
+
+from fluidnexus.errors import InputError
+from fluidnexus.scene import View, load_scene, save_views
+from fluidnexus.video import read_video, write_video
+
+log = logging.getLogger("fluidnexus")
+
+
+def read_footage(path: Path) -> np.ndarray:
+    """[T, H, W, C] float32; a gray video stored as RGB (R = G = B) comes back with C = 1."""
+    video = read_video(path)
+    if video.shape[-1] == 3 and np.array_equal(video[..., :1], video[..., 1:2]) and np.array_equal(
+            video[..., :1], video[..., 2:]):
+        return np.ascontiguousarray(video[..., :1])
+    return video
+
+
+@click.command()
+@click.argument("scene_dir", metavar="SCENE", type=click.Path(path_type=Path, file_okay=False))
+@click.option("--method", type=click.Choice(["axisym", "zero123"]), default="axisym", show_default=True,
+              help="axisym: non-learned axisymmetric plume model; zero123: Zero-1-to-3 from local weights.")
+@click.option("--weights", type=click.Path(path_type=Path), help="Local diffusers-format Zero123 folder.")
+@click.option("--input", "input_name", help="The input view to synthesise from (default: the first one).")
+@click.option("--steps", type=int, default=50, show_default=True, help="zero123: DDIM steps.")
+@click.option("--guidance", type=float, default=3.0, show_default=True, help="zero123: guidance scale.")
+@click.option("--seed", type=int, default=0, show_default=True, help="zero123: noise seed.")
+@click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto", show_default=True,
+              help="zero123: torch device.")
+def synth(scene_dir: Path, method: str, weights: Path | None, input_name: str | None, steps: int, guidance: float,
+          seed: int, device: str) -> None:
+    """Synthesise a video for every novel view of SCENE from its input view.
+
+    \b
+    fluidnexus synth scene                       # axisym, runs anywhere
+    fluidnexus synth scene --method zero123 --weights ~/models/zero123-xl-scalarflow
+    """
+    from fluidnexus.gen.synthesizer import SynthesisInput, make_synthesizer
+
+    scene = load_scene(scene_dir)
+    inputs = scene.with_role("input")
+    if not inputs:
+        raise InputError(scene.root / "scene.json", "views", "the scene has no input view")
+    source = scene.view(input_name) if input_name else inputs[0]
+    if source.role != "input" or source.video is None:
+        raise InputError(None, "--input", f"{source.name!r} is not an input view with a video")
+    novel = scene.with_role("novel")
+    if not novel:
+        raise InputError(scene.root / "scene.json", "views", "the scene has no novel view to synthesise")
+    if method == "zero123":
+        from fluidnexus.gen.zero123 import Zero123Config
+
+        synthesizer = make_synthesizer(method, weights=weights, config=Zero123Config(
+            steps=steps, guidance=guidance, seed=seed, device=None if device == "auto" else device))
+    else:
+        synthesizer = make_synthesizer(method)
+    inp = SynthesisInput(read_footage(scene.video_path(source)), source.camera, scene.source, scene.volume)
+    done = {}
+    for view in novel:
+        log.info("synth %s: %s -> %s", method, source.name, view.name)
+        rel = f"videos/{view.name}_synth.mp4"
+        write_video(scene.root / rel, synthesizer.synthesize(inp, view.camera), scene.fps)
+        done[view.name] = View(view.name, view.role, view.camera, rel,
+                               {"synth": {**synthesizer.provenance(), "input": source.name}})
+    save_views(scene.root, tuple(done.get(v.name, v) for v in scene.views))
+    log.info("wrote %d novel videos into %s", len(done), scene.root / "videos")

@@ -1,0 +1,228 @@
+"""Differentiable 3D Gaussian splatting (Kerbl et al. 2023) on Taichi, behind one torch function.
+
+:func:`render` projects the Gaussians (``splat_project``), bins them into screen tiles in depth order
+(``splat_bin``) and composites each pixel front to back (``splat_raster``). It is a
+``torch.autograd.Function``: the forward runs the Taichi kernels and the backward runs their ``ti.ad`` adjoints
+(the hand-written ``rasterize.grad`` then the automatic ``project_gaussians.grad``), so an image loss
+back-propagates through torch into whatever produced the Gaussians (for instance the simulator's bridge).
+"""
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import torch
+
+from .runtime import current
+from .splat_bin import count_tiles, fill_tiles
+from .splat_buffers import (clear_gaussian_grads, clear_scalar_grads, load_scalar_grads, load_scalars, load_vectors,
+                            splat_fields, store_scalar_grads, store_scalars, store_vector_grads)
+from .splat_project import DEFAULT_NEAR, bound_footprints, pack_camera, project_gaussians
+from .splat_raster import rasterize
+
+DEFAULT_TILE = 16
+
+_tokens = itertools.count()
+
+
+def engine_dtype() -> torch.dtype:
+    """The torch dtype of the running Taichi precision (float64 or float32)."""
+    return torch.float64 if current().precision == "f64" else torch.float32
+
+
+def engine_device() -> torch.device:
+    """The torch device whose tensors the running Taichi arch reads in place."""
+    return torch.device("cuda" if current().arch == "cuda" else "cpu")
+
+
+@dataclass
+class _Frame:
+    """What one forward leaves for its backward: the image layout, tile lists and per-pixel state."""
+
+    token: int
+    n: int
+    channels: int
+    with_depth: bool
+    width: int
+    height: int
+    tile: int
+    tiles_x: int
+    n_tiles: int
+    camera_packed: torch.Tensor
+    start: torch.Tensor
+    lists: torch.Tensor
+    rect: torch.Tensor
+    power_min: torch.Tensor
+    t_final: torch.Tensor
+    last: torch.Tensor
+
+    def raster_args(self, fields):
+        return (fields.gauss, fields.pixels, fields.background, self.channels, self.with_depth, self.tile,
+                self.width, self.height, self.tiles_x, self.n_tiles, self.start, self.lists, self.rect, self.power_min,
+                self.t_final, self.last)
+
+
+def _rows(t: torch.Tensor) -> torch.Tensor:
+    """``t`` with at least one row (kernels get n separately), contiguous, for passing as an ndarray."""
+    if t.shape[0] == 0:
+        t = torch.zeros((1,) + tuple(t.shape[1:]), dtype=t.dtype, device=t.device)
+    return t.contiguous()
+
+
+def _load_inputs(fields, frame: _Frame, means, scales, quats, opacities, colors, background) -> None:
+    """Copy the inputs and the camera into the Taichi fields and project the Gaussians."""
+    g, n = fields.gauss, frame.n
+    load_vectors(g.means, _rows(means), n)
+    load_vectors(g.scales, _rows(scales), n)
+    load_vectors(g.quats, _rows(quats), n)
+    load_scalars(g.opacities, _rows(opacities), n)
+    load_scalars(g.colors, _rows(colors.reshape(-1)), n * frame.channels)
+    load_scalars(fields.background, background.contiguous(), frame.channels)
+    load_scalars(fields.camera, frame.camera_packed, frame.camera_packed.shape[0])
+    project_gaussians(g, fields.camera, n)
+    fields.owner = frame.token
+
+
+def _bin(fields, frame: _Frame) -> None:
+    """Cull, bound and sort the projected Gaussians into per-tile lists (fills frame.start/lists/power_min)."""
+    n, dev = frame.n, frame.camera_packed.device
+    rect = torch.empty((max(n, 1), 4), dtype=torch.int32, device=dev)
+    power_min = torch.empty(max(n, 1), dtype=frame.camera_packed.dtype, device=dev)
+    key = torch.empty(max(n, 1), dtype=frame.camera_packed.dtype, device=dev)
+    bound_footprints(fields.gauss, fields.camera, n, rect, power_min, key)
+    order = torch.argsort(key[:n], stable=True).to(torch.int32)
+    counts = torch.zeros(frame.n_tiles + 1, dtype=torch.int32, device=dev)
+    count_tiles(rect, n, frame.tile, frame.tiles_x, counts)
+    start = torch.cumsum(counts, 0, dtype=torch.int32)
+    lists = torch.empty(max(int(start[-1]), 1), dtype=torch.int32, device=dev)
+    fill_tiles(_rows(order), rect, n, frame.tile, frame.tiles_x, start[:-1].clone(), lists)
+    frame.start, frame.lists, frame.rect, frame.power_min = start, lists, rect, power_min
+
+
+def prepare_frame(camera, means, scales, quats, opacities, colors, background, near: float, tile: int,
+                  with_depth: bool):
+    """Everything before compositing: load the inputs into the fields, project, cull and bin.
+
+    Tensors must already be in the engine's dtype and device. Returns the fields and the :class:`_Frame`, whose
+    ``raster_args(fields)`` are the arguments of ``splat_raster.rasterize``.
+    """
+    n, channels = means.shape[0], colors.shape[1]
+    width, height = camera.width, camera.height
+    tiles_x, tiles_y = -(-width // tile), -(-height // tile)
+    dtype, dev = means.dtype, means.device
+    frame = _Frame(next(_tokens), n, channels, with_depth, width, height, tile, tiles_x, tiles_x * tiles_y,
+                   torch.as_tensor(pack_camera(camera, near), dtype=dtype, device=dev),
+                   start=None, lists=None, rect=None, power_min=None,
+                   t_final=torch.empty(width * height, dtype=dtype, device=dev),
+                   last=torch.empty(width * height, dtype=torch.int32, device=dev))
+    fields = splat_fields()
+    fields.reserve(n, width * height, channels)
+    _load_inputs(fields, frame, means, scales, quats, opacities, colors, background)
+    _bin(fields, frame)
+    return fields, frame
+
+
+class _RenderFunction(torch.autograd.Function):
+    """Taichi forward and ``ti.ad`` backward of :func:`render` (camera, near, tile, with_depth are constants).
+
+    The depth output is empty when with_depth is False (the kernels then skip it).
+    """
+
+    @staticmethod
+    def forward(ctx, means, scales, quats, opacities, colors, background, camera, near, tile, with_depth):
+        fields, frame = prepare_frame(camera, means, scales, quats, opacities, colors, background, near, tile,
+                                      with_depth)
+        rasterize(*frame.raster_args(fields))
+        pix, width, height, channels = fields.pixels, frame.width, frame.height, frame.channels
+        dtype, dev = means.dtype, means.device
+        image = torch.empty((height, width, channels), dtype=dtype, device=dev)
+        alpha = torch.empty((height, width), dtype=dtype, device=dev)
+        depth = torch.empty((height, width) if with_depth else (0,), dtype=dtype, device=dev)
+        store_scalars(pix.image, image.view(-1), width * height * channels)
+        store_scalars(pix.alpha, alpha.view(-1), width * height)
+        if with_depth:
+            store_scalars(pix.depth, depth.view(-1), width * height)
+        ctx.frame = frame
+        ctx.save_for_backward(means, scales, quats, opacities, colors, background)
+        ctx.set_materialize_grads(False)
+        return image, alpha, depth
+
+    @staticmethod
+    def backward(ctx, grad_image, grad_alpha, grad_depth):
+        frame = ctx.frame
+        means, scales, quats, opacities, colors, background = ctx.saved_tensors
+        fields = splat_fields()
+        fields.reserve(frame.n, frame.width * frame.height, frame.channels)
+        if fields.owner != frame.token:  # another render ran in between: restore this one's projection
+            _load_inputs(fields, frame, means, scales, quats, opacities, colors, background)
+        g, pix, n, n_pix = fields.gauss, fields.pixels, frame.n, frame.width * frame.height
+        clear_gaussian_grads(g, n, frame.channels)
+        outputs = [(pix.image, grad_image, n_pix * frame.channels), (pix.alpha, grad_alpha, n_pix)]
+        if frame.with_depth:
+            outputs.append((pix.depth, grad_depth, n_pix))
+        for field, grad, size in outputs:
+            if grad is None:  # that output does not reach the loss
+                clear_scalar_grads(field, size)
+            else:
+                load_scalar_grads(field, grad.contiguous().view(-1), size)
+        rasterize.grad(*frame.raster_args(fields))
+        project_gaussians.grad(g, fields.camera, n)
+        outs = []
+        for field, like in ((g.means, means), (g.scales, scales), (g.quats, quats)):
+            out = torch.empty_like(_rows(like))
+            store_vector_grads(field, out, n)
+            outs.append(out[:n])
+        grad_opacities = torch.empty_like(_rows(opacities))
+        store_scalar_grads(g.opacities, grad_opacities, n)
+        grad_colors = torch.empty_like(_rows(colors))
+        store_scalar_grads(g.colors, grad_colors.view(-1), n * frame.channels)
+        grad_background = None
+        if ctx.needs_input_grad[5] and grad_image is not None:
+            # C = ... + T_N c_bg (Kerbl et al. 2023, Eq. 3 with a background): dL/dc_bg = sum_p T_N(p) dL/dC(p).
+            grad_background = frame.t_final @ grad_image.reshape(-1, frame.channels)
+        return (*outs, grad_opacities[:n], grad_colors[:n], grad_background, None, None, None, None)
+
+
+def render(camera, means: torch.Tensor, scales: torch.Tensor, quats: torch.Tensor, opacities: torch.Tensor,
+           colors: torch.Tensor, background: torch.Tensor | None = None, return_depth: bool = False,
+           near: float = DEFAULT_NEAR, tile: int = DEFAULT_TILE):
+    """Render 3D Gaussians seen by ``camera``; differentiable in every tensor argument.
+
+    Tensors are converted to the running Taichi precision and device (``fluidnexus.engine.init``); outputs
+    come back in that dtype on the means' device.
+
+    Args:
+        camera: a :class:`fluidnexus.camera.Camera` (OpenCV axes; pixel (col, row) is sampled at its centre).
+        means: [N, 3] centres, world metres.
+        scales: [N, 3] standard deviations along the Gaussian's body axes, metres (not log).
+        quats: [N, 4] rotations (w, x, y, z), body to world; normalised inside, must be non-zero.
+        opacities: [N] peak opacities in [0, 1].
+        colors: [N, C] colours, C = 1 (grayscale) or 3 (RGB) or any C >= 1.
+        background: [C] colour behind the Gaussians (default black).
+        return_depth: also return the accumulated depth.
+        near: near plane in metres; Gaussians with camera z <= near are culled.
+        tile: tile edge in pixels.
+    Returns:
+        image [H, W, C], alpha [H, W] (1 - final transmittance), and depth [H, W] (sum of alpha-weighted
+        camera-space z in metres; divide by alpha for the expected depth) or None.
+    """
+    n = means.shape[0]
+    if colors.dim() != 2 or colors.shape[0] != n or colors.shape[1] < 1:
+        raise ValueError(f"colors must be [N, C] with N = {n}, got {tuple(colors.shape)}")
+    channels = colors.shape[1]
+    for name, t, shape in (("means", means, (n, 3)), ("scales", scales, (n, 3)), ("quats", quats, (n, 4)),
+                           ("opacities", opacities, (n,))):
+        if tuple(t.shape) != shape:
+            raise ValueError(f"{name} must have shape {shape}, got {tuple(t.shape)}")
+    if n and bool((quats.detach() == 0).all(dim=1).any()):
+        raise ValueError("quats contains a zero quaternion")
+    out_device = means.device
+    dtype, dev = engine_dtype(), engine_device()
+    if background is None:
+        background = torch.zeros(channels, dtype=dtype, device=dev)
+    if tuple(background.shape) != (channels,):
+        raise ValueError(f"background must have shape ({channels},), got {tuple(background.shape)}")
+    args = [t.to(device=dev, dtype=dtype) for t in (means, scales, quats, opacities, colors, background)]
+    image, alpha, depth = _RenderFunction.apply(*args, camera, float(near), int(tile), bool(return_depth))
+    image, alpha = image.to(out_device), alpha.to(out_device)
+    return image, alpha, (depth.to(out_device) if return_depth else None)

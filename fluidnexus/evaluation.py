@@ -1,0 +1,126 @@
+"""``fluidnexus eval``: score a run against the scene's ground-truth videos (docs/evaluation.md).
+
+- novel_view: every ground-truth camera renders every frame of the run; PSNR and SSIM per frame against the real
+  frame at the run's resolution (LPIPS too with local AlexNet weights), averaged per view, then over views.
+- resimulation: the visual particles of the first frame are advected through the run's reconstructed velocity
+  fields only (x_t = x_{t-1} + dt V_t(x_{t-1}), new particles entering where the run's emitter put them), rendered
+  with each frame's appearance and scored the same way (FluidNexus Sec. 4).
+- divergence: mean |div V| over a dense grid in the scene volume and over time (definition in docs/evaluation.md),
+  plus the same mean restricted to grid nodes inside the smoke (a visual particle within h).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from . import engine
+from .errors import InputError
+from .frames import render_state
+from .metrics import psnr, ssim
+from .progress import progress
+from .runs import Run
+from .scene import load_ground_truth
+from .state import FrameState
+from .video import read_video
+
+DIVERGENCE_GRID = 32  # nodes along the longest side of the volume
+
+
+@dataclass(frozen=True)
+class Scores:
+    psnr: float
+    ssim: float
+    lpips: float | None
+
+    def to_dict(self) -> dict:
+        return {"psnr": self.psnr, "ssim": self.ssim, "lpips": self.lpips}
+
+
+def _mean(values) -> float | None:
+    values = [v for v in values if v is not None]
+    return float(np.mean(values)) if values else None
+
+
+def _score(rendered: list[np.ndarray], truth: np.ndarray, lpips_weights) -> Scores:
+    p = [float(psnr(r, g)) for r, g in zip(rendered, truth)]
+    s = [float(ssim(r, g)) for r, g in zip(rendered, truth)]
+    lp = None
+    if lpips_weights is not None:
+        from .lpips import lpips
+
+        lp = _mean(float(lpips(lpips_weights, torch.from_numpy(r), torch.from_numpy(g))) for r, g in zip(rendered, truth))
+    return Scores(float(np.mean(p)), float(np.mean(s)), lp)
+
+
+def resimulate(run: Run, frames: list[int]) -> list[FrameState]:
+    """States whose visual positions come only from advecting the first frame through the saved velocities."""
+    first = run.state(frames[0])
+    out = [first]
+    x = torch.as_tensor(first.visual_positions, dtype=torch.float64 if engine.current().precision == "f64"
+                        else torch.float32)
+    query = None
+    for t in frames[1:]:
+        state = run.state(t)
+        p = torch.as_tensor(state.physical_positions, dtype=x.dtype)
+        u = torch.as_tensor(state.physical_velocities, dtype=x.dtype)
+        if query is None or query.source_capacity < len(p) or query.query_capacity < state.num_visual:
+            query = engine.FieldQuery(2 * max(len(p), 1), 2 * state.num_visual, run.config["solver"]["h"])
+        with torch.no_grad():
+            x = engine.advect(x, p, u, run.dt, query)
+        born = torch.as_tensor(state.visual_positions[len(x):], dtype=x.dtype)  # emitted at this frame
+        x = torch.cat([x, born])[: state.num_visual]
+        out.append(FrameState(t, state.physical_positions, state.physical_velocities, x.numpy().astype(np.float32),
+                              state.visual_colors, state.visual_scales, state.visual_rotations,
+                              state.visual_opacities, state.physical_ages))
+    return out
+
+
+def divergence(run: Run, frames: list[int], grid: int = DIVERGENCE_GRID) -> dict:
+    """Mean |div V| over the volume grid and over time, and the same inside the smoke."""
+    scene = run.scene(check_videos=False)
+    if scene.volume is None:
+        raise InputError(scene.root / "scene.json", "volume", "divergence needs the scene's volume bounds")
+    lo, hi = np.asarray(scene.volume.min), np.asarray(scene.volume.max)
+    res = np.maximum(3, np.round(grid * (hi - lo) / (hi - lo).max()).astype(int))
+    h = run.config["solver"]["h"]
+    all_nodes, in_smoke = [], []
+    for t in frames:
+        state = run.state(t)
+        query = engine.FieldQuery(max(1, state.num_physical), int(np.prod(res)), h)
+        div, _ = engine.divergence_on_grid(query, state.physical_positions, state.physical_velocities, lo, hi, res)
+        vis = engine.FieldQuery(max(1, state.num_visual), int(np.prod(res)), h)
+        _, near_smoke = engine.divergence_on_grid(vis, state.visual_positions, np.zeros_like(state.visual_positions),
+                                                  lo, hi, res)
+        all_nodes.append(np.abs(div).mean())
+        if (near_smoke > 0).any():
+            in_smoke.append(np.abs(div[near_smoke > 0]).mean())
+    return {"mean_abs": float(np.mean(all_nodes)), "mean_abs_in_smoke": _mean(in_smoke),
+            "grid": [int(r) for r in res], "unit": "1/s"}
+
+
+def evaluate(run: Run, lpips_weights=None) -> dict:
+    """Score a run: the JSON document of ``fluidnexus eval`` (keys in docs/evaluation.md)."""
+    scene = run.scene(check_videos=False)
+    truths = load_ground_truth(scene.root)
+    if not truths:
+        raise InputError(scene.root / "scene.json", "ground_truth", "the scene has no ground-truth view to score")
+    frames = run.frames
+    resim = resimulate(run, frames)
+    per_view, resim_scores = {}, {}
+    with progress("evaluate", len(truths)) as bar:
+        for gt in truths:
+            cam = gt.camera.scaled(run.resolution)
+            video = read_video(scene.root / gt.video, frames=slice(frames[0], frames[-1] + 1),
+                               size=(cam.width, cam.height), channels=run.channels)
+            truth = video[[t - frames[0] for t in frames]]
+            per_view[gt.name] = _score([render_state(run.state(t), cam) for t in frames], truth, lpips_weights)
+            resim_scores[gt.name] = _score([render_state(s, cam) for s in resim], truth, lpips_weights)
+            bar.advance()
+    mean = {k: _mean(getattr(s, k) for s in per_view.values()) for k in ("psnr", "ssim", "lpips")}
+    resim_mean = {k: _mean(getattr(s, k) for s in resim_scores.values()) for k in ("psnr", "ssim", "lpips")}
+    return {"novel_view": {**mean, "per_view": {k: v.to_dict() for k, v in per_view.items()}},
+            "resimulation": resim_mean, "divergence": divergence(run, frames),
+            "frames": [frames[0], frames[-1] + 1],
+            "resolution": {"scale": run.resolution, "width": cam.width, "height": cam.height}}

@@ -1,0 +1,132 @@
+"""Reconstruction settings: one frozen dataclass, defaults from the authors' release (method notes).
+
+Lengths are metres. The release works in a x100 scaled space (1 unit = 1 cm); its squared-distance weights are
+kept by measuring the simulation term in centimetres (``LENGTH_UNIT``), see docs/reconstruction.md.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields, replace
+
+from ..errors import InputError
+
+LENGTH_UNIT = 0.01  # metres per release unit: L_sim = lambda_sim * mean(|(p - p_sim) / LENGTH_UNIT|^2)
+
+
+@dataclass(frozen=True)
+class ReconConfig:
+    """Everything that decides a reconstruction's result (saved as RUN/config.json).
+
+    Attributes:
+        frames: half-open frame range [start, stop) of the scene's videos; stop None = the last frame.
+        resolution: image scale relative to the scene's videos.
+        channels: 1 (gray smoke) or 3 (RGB).
+        seed: random seed (view order, emitter jitter).
+        init_iters: Adam iterations of the frame-0 visual position fit.
+        dynamics_iters: stage-1 iterations per frame (optimising p_t).
+        appearance_iters: stage-2 iterations per frame (colour, opacity, scale, rotation).
+        views_per_iter: views rendered per iteration (the release uses one random view).
+        lr_position: stage-1 / init learning rate, metres per step.
+        lr_color, lr_opacity, lr_scale, lr_rotation: stage-2 learning rates (Adam, on the raw parameters:
+            colour and opacity in logit space, scale in log space).
+        w_l1, w_dssim: image loss 0.8 L1 + 0.2 (1 - SSIM).
+        lambda_sim: weight of |p_t - p_sim|^2 (in release units, see LENGTH_UNIT).
+        lambda_density: weight of mean (rho(p_t)/rho0 - 1)^2.
+        lambda_next: weight of the same on the look-ahead Sim(u_t, p_t).
+        lambda_visual_incomp: weight of sum max(0, sigma - d_ij)^2 over visual pairs.
+        visual_sigma: sigma of that term, metres.
+        lambda_color, lambda_scale, lambda_opacity, lambda_rotation: temporal regularisation (paper Eq. 7).
+        anisotropy_cap: largest allowed ratio of a Gaussian's largest to smallest scale.
+        color0, scale0, opacity0: constant initial appearance of the visual particles.
+        visual_spacing, visual_radius: visual emitter lattice spacing and disk radius, metres.
+        init_visual_radius: radius of the frame-0 visual cylinder, metres.
+        physical_spacing: physical initial-lattice spacing, metres.
+        physical_radius: radius of the physical cylinder and emitter, metres.
+        physical_height: height of the initial physical cylinder (from 2 cm below the source), metres.
+        physical_emit_spacing, physical_emit_radius: physical emitter lattice spacing and disk radius, metres.
+        init_visual_height: height of the frame-0 visual cylinder above the source, metres.
+        stabilization_steps: N_stable steps before frame 0.
+        max_loss: a loss above this (or NaN) stops the run (divergence).
+    """
+
+    frames: tuple[int, int | None] = (0, None)
+    resolution: float = 0.25
+    channels: int = 1
+    seed: int = 0
+    init_iters: int = 1000
+    dynamics_iters: int = 250
+    appearance_iters: int = 50
+    views_per_iter: int = 1
+    lr_position: float = 1.6e-4
+    lr_color: float = 0.01
+    lr_opacity: float = 0.05
+    lr_scale: float = 0.005
+    lr_rotation: float = 0.001
+    w_l1: float = 0.8
+    w_dssim: float = 0.2
+    lambda_sim: float = 0.1
+    lambda_density: float = 1.0
+    lambda_next: float = 0.1
+    lambda_visual_incomp: float = 0.1
+    visual_sigma: float = 0.00625
+    lambda_color: float = 10.0
+    lambda_scale: float = 0.0
+    lambda_opacity: float = 8.0
+    lambda_rotation: float = 0.1
+    anisotropy_cap: float = 4.0
+    color0: float = 0.7
+    scale0: float = 0.0027
+    opacity0: float = 0.1
+    visual_spacing: float = 0.00625
+    visual_radius: float = 0.025
+    init_visual_radius: float = 0.03
+    physical_spacing: float = 0.009
+    physical_radius: float = 0.10
+    physical_height: float = 0.10
+    physical_emit_spacing: float = 0.015
+    physical_emit_radius: float = 0.09
+    init_visual_height: float = 0.05
+    stabilization_steps: int = 20
+    max_loss: float = 1e3
+
+    def __post_init__(self):
+        checks = {
+            "resolution": 0 < self.resolution <= 4, "channels": self.channels in (1, 3),
+            "views_per_iter": self.views_per_iter >= 1, "anisotropy_cap": self.anisotropy_cap >= 1,
+            "init_iters": self.init_iters >= 0, "dynamics_iters": self.dynamics_iters >= 0,
+            "appearance_iters": self.appearance_iters >= 0, "stabilization_steps": self.stabilization_steps >= 0,
+            "frames": self.frames[0] >= 0 and (self.frames[1] is None or self.frames[1] > self.frames[0]),
+        }
+        for name in ("lr_position", "visual_sigma", "scale0", "visual_spacing", "visual_radius",
+                     "physical_spacing", "physical_radius", "physical_height", "init_visual_radius",
+                     "physical_emit_spacing", "physical_emit_radius", "init_visual_height"):
+            checks[name] = getattr(self, name) > 0
+        checks["opacity0"] = 0 < self.opacity0 < 1
+        checks["color0"] = 0 < self.color0 < 1
+        for name, ok in checks.items():
+            if not ok:
+                raise InputError(None, f"--{name.replace('_', '-')}", f"impossible value {getattr(self, name)!r}")
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["frames"] = list(self.frames)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict, path=None) -> "ReconConfig":
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise InputError(path, unknown[0], "unknown reconstruction setting")
+        d = dict(d)
+        if "frames" in d:
+            d["frames"] = tuple(d["frames"])
+        return cls(**d)
+
+    def with_overrides(self, **values) -> "ReconConfig":
+        """A copy with the given settings changed (command-line values win over file values)."""
+        return replace(self, **{k: v for k, v in values.items() if v is not None})
+
+
+def differing_keys(a: dict, b: dict) -> list[str]:
+    """Keys whose values differ between two resolved configs (for refusing a mismatched --resume)."""
+    return sorted(k for k in set(a) | set(b) if a.get(k) != b.get(k))

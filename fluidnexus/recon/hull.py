@@ -1,0 +1,58 @@
+"""Where the smoke is at the first frame: a multi-view visual hull, and the inflow at its foot.
+
+The hull seeds the visual particles before their positions are fitted to the first frame (Alg. S1,
+initialisation), and its lowest slab locates the smoke source in the footage itself, which is more reliable
+than a box corner of the calibration: a voxel centre is kept when it projects onto smoke (intensity above
+``threshold``) in every view (a voxel outside some view's image is dropped, which keeps ghosts at the image
+borders out).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..camera import Camera
+from ..scene import Source, Volume
+
+
+@dataclass(frozen=True)
+class Hull:
+    points: np.ndarray  # [K, 3] voxel centres inside the hull, metres
+    voxel: float
+
+
+def visual_hull(cameras: tuple[Camera, ...], images: np.ndarray, volume: Volume, voxel: float,
+                threshold: float = 0.05) -> Hull:
+    """Voxel centres on a ``voxel``-metre grid over ``volume`` that every view sees, as smoke.
+
+    Args:
+        cameras: [V] cameras matching ``images``.
+        images: [V, H, W, C] one frame per view, in [0, 1].
+    """
+    lo, hi = np.asarray(volume.min), np.asarray(volume.max)
+    axes = [np.arange(lo[a] + voxel / 2, hi[a], voxel) for a in range(3)]
+    pts = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+    inside = np.ones(len(pts), bool)
+    for cam, image in zip(cameras, images):
+        mask = image.max(axis=2) > threshold
+        uv, depth = cam.project(pts)
+        col, row = np.floor(uv[:, 0]).astype(int), np.floor(uv[:, 1]).astype(int)
+        seen = (depth > 0) & (col >= 0) & (col < cam.width) & (row >= 0) & (row < cam.height)
+        smoke = np.zeros(len(pts), bool)
+        smoke[seen] = mask[row[seen], col[seen]]
+        inside &= smoke  # a voxel outside a view's image cannot be confirmed as smoke: it is carved
+    return Hull(pts[inside], voxel)
+
+
+def source_from_hull(hull: Hull, fallback: Source, slab: float = 0.01, min_points: int = 8) -> Source:
+    """The inflow at the foot of the hull: centre of its lowest ``slab`` metres, at the hull's bottom.
+
+    Keeps ``fallback``'s radius; returns ``fallback`` when the hull is too small to tell.
+    """
+    if len(hull.points) < min_points:
+        return fallback
+    y0 = np.percentile(hull.points[:, 1], 2)
+    foot = hull.points[hull.points[:, 1] <= y0 + slab]
+    cx, cz = foot[:, 0].mean(), foot[:, 2].mean()
+    return Source((float(cx), float(y0), float(cz)), fallback.radius)

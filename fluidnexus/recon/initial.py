@@ -1,0 +1,74 @@
+"""The state before the first reconstructed frame (FluidNexus supp. "Initialization").
+
+Physical particles start on a cubic lattice in a vertical cylinder over the source and are stabilised for
+N_stable steps while the emitter seeds more; visual particles start in the first frame's visual hull (or, without
+one, on a finer lattice in a thin cylinder over the source) with the constant initial appearance; their positions
+are then fitted to the first frame (``fit.fit_positions``).
+"""
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from ..engine import SourceDisk, cylinder_lattice
+from ..scene import Source
+from .config import ReconConfig
+from .smoke import Smoke
+from .workspace import Workspace
+
+
+def physical_source(source: Source, cfg: ReconConfig) -> SourceDisk:
+    """The physical emitter: ``physical_emit_spacing`` on a disk of ``physical_emit_radius`` at the source."""
+    return SourceDisk(center=tuple(source.center), radius=cfg.physical_emit_radius,
+                      spacing=cfg.physical_emit_spacing, jitter=0.1)
+
+
+def visual_source(source: Source, cfg: ReconConfig) -> SourceDisk:
+    """The visual emitter: ``visual_spacing`` on a disk of ``visual_radius`` at the source."""
+    return SourceDisk(center=tuple(source.center), radius=cfg.visual_radius, spacing=cfg.visual_spacing, jitter=0.1)
+
+
+def frame_rng(seed: int, frame: int) -> np.random.Generator:
+    """The generator of one frame's random choices (emitter jitter); independent of any earlier frame."""
+    return np.random.default_rng([seed, frame + 1_000_000])
+
+
+def frame_generator(seed: int, frame: int) -> torch.Generator:
+    """The torch generator of one frame's view choices."""
+    return torch.Generator().manual_seed(seed * 1_000_003 + frame)
+
+
+def initial_smoke(source: Source, visual: np.ndarray, cfg: ReconConfig, ws: Workspace, frame: int) -> Smoke:
+    """Physical particles after N_stable stabilisation steps around ``source``, and visual particles at
+    ``visual`` [M, 3] with the constant initial appearance, at ``frame``."""
+    dtype, dt = ws.dtype, ws.dt
+    cx, cy, cz = source.center
+    lattice = cylinder_lattice((cx, cz), cfg.physical_radius, cy - 0.02, cy - 0.02 + cfg.physical_height,
+                               cfg.physical_spacing)
+    empty = torch.zeros((0, 3), dtype=dtype)
+    smoke = Smoke(frame, empty, empty, torch.zeros(0, dtype=dtype), empty, torch.zeros((0, cfg.channels), dtype=dtype),
+                  empty, torch.zeros((0, 4), dtype=dtype), torch.zeros(0, dtype=dtype))
+    smoke.add_physical(torch.as_tensor(lattice))
+    emitter = physical_source(source, cfg)
+    for step in range(cfg.stabilization_steps):
+        smoke.add_physical(torch.as_tensor(emitter.sample(frame_rng(cfg.seed, -1 - step))))
+        smoke.p, smoke.u = ws.simulate(smoke.p, smoke.u, smoke.age)
+        smoke.age = smoke.age + dt
+        smoke.keep_physical(~ws.isolated(smoke.p))
+    smoke.add_visual(torch.as_tensor(visual), cfg.color0, cfg.scale0, cfg.opacity0)
+    return smoke
+
+
+def initial_visual(source: Source, hull_points: np.ndarray, cfg: ReconConfig, min_points: int = 8) -> np.ndarray:
+    """Seeds of the visual particles: the first frame's hull, or a thin cylinder over the source without one."""
+    if len(hull_points) >= min_points:
+        return hull_points
+    cx, cy, cz = source.center
+    return cylinder_lattice((cx, cz), cfg.init_visual_radius, cy, cy + cfg.init_visual_height, cfg.visual_spacing)
+
+
+def emit(smoke: Smoke, source: Source, cfg: ReconConfig, frame: int) -> None:
+    """Seed one frame's new physical and visual particles at the source."""
+    rng = frame_rng(cfg.seed, frame)
+    smoke.add_physical(torch.as_tensor(physical_source(source, cfg).sample(rng)))
+    smoke.add_visual(torch.as_tensor(visual_source(source, cfg).sample(rng)), cfg.color0, cfg.scale0, cfg.opacity0)

@@ -1,0 +1,224 @@
+"""``reconstruct``: the frame loop of FluidNexus Alg. S1 with a run folder, checkpoints and resume.
+
+Run folder layout (docs/run-format.md)::
+
+    RUN/
+      run.json          format tag, kind, the scene folder, frame range
+      config.json       the resolved settings: reconstruction, PBF solver and model
+      frames/NNNNNN.npz one state per reconstructed frame (fluidnexus.state), written atomically
+      logs/recon.log    one line per frame: losses, particle counts, seconds
+      summary.json      frames done, time per frame split into simulation / rendering / backward / other
+
+Each frame's random choices come from generators seeded by (seed, frame), and Adam restarts every frame, so the
+state saved after frame t determines everything after it: ``--resume`` continues from the last complete frame
+and ends where an uninterrupted run would.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from .. import engine
+from ..atomic import write_json
+from ..engine import ModelConfig, SolverConfig
+from ..errors import InputError, RunError
+from ..progress import progress
+from ..runs import RUN_FORMAT
+from ..scene import SCENE_FILE, Scene, Source
+from ..state import frame_path, load_frame, save_frame
+from .config import ReconConfig, differing_keys
+from .fit import Views, fit_appearance, fit_dynamics, fit_positions
+from ..engine import cylinder_lattice
+from .hull import source_from_hull, visual_hull
+from .initial import emit, frame_generator, initial_smoke, initial_visual, physical_source, visual_source
+from .observations import load_observations, resolve_frames
+from .smoke import Smoke
+from .timing import Stopwatch
+from .workspace import Workspace
+
+log = logging.getLogger("fluidnexus")
+
+
+@dataclass(frozen=True)
+class RunSetup:
+    """What a reconstruction needs besides the scene: settings, the PBF gas, and the resolved frame range."""
+
+    config: ReconConfig
+    solver: SolverConfig
+    model: ModelConfig
+
+    def to_dict(self) -> dict:
+        return {"recon": self.config.to_dict(), "solver": self.solver.to_dict(), "model": self.model.to_dict()}
+
+
+def default_setup(scene: Scene, config: ReconConfig, model: ModelConfig | None = None) -> RunSetup:
+    """Settings for ``scene``: the solver's time step is one frame (1 / fps)."""
+    return RunSetup(config, SolverConfig(dt=1.0 / scene.fps), model or ModelConfig.scalarflow())
+
+
+def scene_source(scene: Scene) -> Source:
+    """The smoke inflow: the scene's ``source``, else the bottom centre of its volume."""
+    if scene.source is not None:
+        return scene.source
+    if scene.volume is not None:
+        return Source(tuple(float(v) for v in scene.volume.bottom_center), 0.025)
+    raise InputError(scene.root / SCENE_FILE, "source", "the scene has neither a source nor a volume")
+
+
+def capacities(n_frames: int, setup: RunSetup, source: Source, n_visual: int) -> tuple[int, int]:
+    """Upper bounds of the physical and visual particle counts over a run (initial + every emission)."""
+    cfg = setup.config
+    cx, cy, cz = source.center
+    n0 = len(cylinder_lattice((cx, cz), cfg.physical_radius, 0.0, cfg.physical_height, cfg.physical_spacing))
+    steps = n_frames + cfg.stabilization_steps + 1
+    return (n0 + steps * physical_source(source, cfg).count + 64,
+            n_visual + (n_frames + 1) * visual_source(source, cfg).count + 64)
+
+
+def locate_smoke(scene: Scene, obs, cfg: ReconConfig) -> tuple[Source, np.ndarray]:
+    """The inflow and the visual seeds from the first frame's visual hull (the scene's source without one)."""
+    fallback = scene_source(scene)
+    hull_points = np.zeros((0, 3))
+    if scene.volume is not None:
+        hull = visual_hull(obs.cameras, obs.frame(obs.first), scene.volume, cfg.visual_spacing)
+        fallback = source_from_hull(hull, fallback)
+        hull_points = hull.points
+    return fallback, initial_visual(fallback, hull_points, cfg)
+
+
+def _prepare_folder(out: Path, scene: Scene, setup: RunSetup, frames: tuple[int, int], resume: bool) -> int:
+    """Create or check the run folder; return the first frame still to reconstruct."""
+    resolved = setup.to_dict()
+    if resume:
+        config_file = out / "config.json"
+        if not config_file.exists():
+            raise InputError(out, None, "--resume: no reconstruction run here (config.json missing)")
+        import json
+
+        saved = json.loads(config_file.read_text())
+        diff = [f"{section}.{k}" for section in resolved
+                for k in differing_keys(saved.get(section, {}), resolved[section])]
+        if diff:
+            raise InputError(config_file, diff[0], f"--resume with different settings: {', '.join(diff)} differ "
+                                                   "from the run's config.json")
+        done = [t for t in range(*frames) if frame_path(out, t).exists()]
+        first = frames[0]
+        while first in done:
+            first += 1
+        return first
+    if out.exists() and any(out.iterdir()):
+        raise InputError(out, None, "already exists and is not empty (use --resume to continue it, or another --out)")
+    (out / "frames").mkdir(parents=True, exist_ok=True)
+    (out / "logs").mkdir(exist_ok=True)
+    write_json(out / "run.json", {"format": RUN_FORMAT, "kind": "recon", "scene": str(scene.root.resolve()),
+                                  "frames": list(frames), "arch": engine.current().arch})
+    write_json(out / "config.json", resolved)
+    return frames[0]
+
+
+def reconstruct(scene: Scene, out: str | Path, setup: RunSetup, resume: bool = False) -> dict:
+    """Reconstruct the smoke of ``scene`` into the run folder ``out``; return the summary.
+
+    Raises:
+        InputError: bad settings, no usable view, a frame range outside the videos, a mismatched --resume.
+        RunError: the optimisation diverged or a frame could not be written; the last good frame is kept.
+    """
+    out = Path(out)
+    cfg = setup.config
+    frames = resolve_frames(scene, cfg.frames)
+    setup = replace(setup, config=replace(cfg, frames=frames))
+    cfg = setup.config
+    first = _prepare_folder(out, scene, setup, frames, resume)
+    obs = load_observations(scene, frames, cfg.resolution, cfg.channels)
+    source, seeds = locate_smoke(scene, obs, cfg)
+    ws = Workspace(*capacities(frames[1] - frames[0], setup, source, len(seeds)), setup.solver, setup.model)
+    handler = logging.FileHandler(out / "logs" / "recon.log")
+    handler.setFormatter(logging.Formatter("%(asctime)s %(message)s"))
+    log.addHandler(handler)
+    watch = Stopwatch()
+    try:
+        summary = _frame_loop(out, setup, obs, ws, source, seeds, first, watch)
+    finally:
+        log.removeHandler(handler)
+        handler.close()
+    return summary
+
+
+def _views(obs, t: int, dtype) -> Views:
+    return Views(obs.cameras, torch.as_tensor(obs.frame(t), dtype=dtype))
+
+
+def _frame_loop(out, setup, obs, ws, source, seeds, first, watch) -> dict:
+    cfg = setup.config
+    start, stop = cfg.frames
+    started = time.perf_counter()
+    with progress("reconstruct", stop - first) as bar:
+        if first == start:
+            with watch.measure("initialisation"):
+                try:
+                    smoke = _first_frame(source, seeds, obs, ws, cfg, bar, watch)
+                except FloatingPointError as err:
+                    raise RunError(f"frame {start} (initialisation): {err}; nothing was saved") from None
+            smoke = _save(out, smoke, start)
+            bar.advance()
+            first += 1
+        else:
+            smoke = Smoke.from_state(load_frame(frame_path(out, first - 1)), ws.dtype)
+            log.info("resuming after frame %d", first - 1)
+        for t in range(first, stop):
+            tic = time.perf_counter()
+            smoke = _save(out, _one_frame(smoke, t, source, obs, ws, cfg, bar, watch, out), t)
+            log.info("frame %d: %d physical, %d visual particles, %.1f s", t, smoke.p.shape[0], smoke.x.shape[0],
+                     time.perf_counter() - tic)
+            bar.advance()
+    elapsed = time.perf_counter() - started
+    summary = {"format": RUN_FORMAT, "frames": [start, stop], "frames_this_session": stop - first,
+               "source": {"center": list(source.center), "radius": source.radius},
+               "elapsed_s": round(elapsed, 3), "timing_s": watch.totals(),
+               "seconds_per_frame": round(elapsed / max(1, stop - first), 3),
+               "particles": {"physical": int(smoke.p.shape[0]), "visual": int(smoke.x.shape[0])}}
+    write_json(out / "summary.json", summary)
+    return summary
+
+
+def _first_frame(source, seeds, obs, ws, cfg, bar, watch) -> Smoke:
+    start = cfg.frames[0]
+    smoke = initial_smoke(source, seeds, cfg, ws, start)
+    views = _views(obs, start, ws.dtype)
+    fit_positions(smoke, views, cfg, frame_generator(cfg.seed, start), bar, watch)
+    fit_appearance(smoke, views, cfg, frame_generator(cfg.seed, start), bar, watch)
+    return smoke
+
+
+def _one_frame(prev: Smoke, t, source, obs, ws, cfg, bar, watch, out) -> Smoke:
+    views = _views(obs, t, ws.dtype)
+    emit(prev, source, cfg, t)
+    try:
+        with watch.measure("dynamics"):
+            dyn = fit_dynamics(prev, ws, views, cfg, frame_generator(cfg.seed, t), bar, watch)
+        smoke = Smoke(t, dyn.p, dyn.u, prev.age + ws.dt, dyn.x, prev.color, prev.scale, prev.rotation, prev.opacity)
+        smoke.keep_physical(~ws.isolated(smoke.p))
+        with watch.measure("appearance"):
+            losses = fit_appearance(smoke, views, cfg, frame_generator(cfg.seed, t), bar, watch)
+    except FloatingPointError as err:
+        raise RunError(f"frame {t}: {err}. The last good frame is {t - 1}: {frame_path(out, t - 1)}; "
+                       "fix the setting and continue with --resume") from None
+    log.info("frame %d losses: %s", t, ", ".join(f"{k}={v:.4g}" for k, v in {**dyn.losses, **losses}.items()))
+    return smoke
+
+
+def _save(out: Path, smoke: Smoke, t: int) -> Smoke:
+    """Write frame ``t`` and return the state exactly as saved (float32), which the next frame starts from, so
+    that a run resumed from the file continues identically whatever the engine precision."""
+    state = smoke.to_state()
+    try:
+        save_frame(frame_path(out, t), state)
+    except OSError as err:
+        raise RunError(f"could not write {frame_path(out, t)} ({err.strerror or err}); the last complete frame "
+                       f"is kept, continue with --resume once there is room") from None
+    return Smoke.from_state(state, smoke.p.dtype)

@@ -1,0 +1,71 @@
+"""Engine objects a reconstruction reuses every iteration, sized once for the whole run."""
+from __future__ import annotations
+
+import numpy as np
+import taichi as ti
+import torch
+
+from .. import engine
+from ..engine import FieldQuery, ModelConfig, NeighborTable, PBFSimulator, SolverConfig, simulate_step
+
+
+class Workspace:
+    """The simulator, the field queries and the visual pair table of one run.
+
+    Each differentiable query has its own :class:`FieldQuery`, so the forward state a backward needs is never
+    overwritten within an iteration (the bridges recompute it if it is).
+
+    Args:
+        physical_capacity: most physical particles at any frame.
+        visual_capacity: most visual particles at any frame.
+        solver, model: the PBF gas (constants, external terms).
+    """
+
+    def __init__(self, physical_capacity: int, visual_capacity: int, solver: SolverConfig, model: ModelConfig):
+        self.solver, self.model = solver, model
+        self.dtype = torch.float64 if engine.current().precision == "f64" else torch.float32
+        self.sim = PBFSimulator(physical_capacity, solver, model)
+        self.theta = torch.tensor(model.to_vector(), dtype=self.dtype)
+        h = solver.h
+        self.advect_query = FieldQuery(physical_capacity, visual_capacity, h)
+        self.density_query = FieldQuery(physical_capacity, physical_capacity, h)
+        self.next_query = FieldQuery(physical_capacity, physical_capacity, h)
+        self._pair_points = ti.Vector.field(3, engine.real(), shape=visual_capacity)
+        self._pair_table = NeighborTable(visual_capacity, width=32)
+
+    @property
+    def dt(self) -> float:
+        return self.solver.dt
+
+    def simulate(self, p: torch.Tensor, u: torch.Tensor, age: torch.Tensor, differentiable: bool = False):
+        """One PBF step (p, u) -> (p', u'); with ``differentiable`` the result carries the ``ti.ad`` graph."""
+        if differentiable:
+            return simulate_step(p, u, self.theta, self.sim, age)
+        with torch.no_grad():
+            return simulate_step(p.detach(), u.detach(), self.theta, self.sim, age)
+
+    def isolated(self, p: torch.Tensor) -> torch.Tensor:
+        """[N] bool: physical particles with no other particle within h (the release deletes them)."""
+        if p.shape[0] == 0:
+            return torch.zeros(0, dtype=torch.bool)
+        with torch.no_grad():
+            rho = engine.density_at(p.detach(), p.detach(), self.density_query)
+        h = self.solver.h
+        self_term = 315.0 / (64.0 * np.pi * h**9) * h**6  # Poly6 W(0)
+        return rho <= self_term * (1.0 + 1e-6)
+
+    def visual_pairs(self, x: torch.Tensor, radius: float) -> torch.Tensor:
+        """[P, 2] int64 index pairs (i < j) of visual particles closer than ``radius``."""
+        m = x.shape[0]
+        if m < 2:
+            return torch.zeros((0, 2), dtype=torch.long)
+        full = np.zeros((self._pair_points.shape[0], 3))
+        full[:m] = x.detach().cpu().numpy()
+        self._pair_points.from_numpy(full.astype(self._pair_points.to_numpy().dtype))
+        self._pair_table.build(self._pair_points, m, radius)
+        count = self._pair_table.count.to_numpy()[:m]
+        nbr = self._pair_table.nbr.to_numpy()[:m]
+        i = np.repeat(np.arange(m), count)
+        j = np.concatenate([nbr[k, :c] for k, c in enumerate(count)]) if count.sum() else np.zeros(0, int)
+        keep = i < j
+        return torch.from_numpy(np.stack([i[keep], j[keep]], axis=1).astype(np.int64))
