@@ -142,7 +142,7 @@ def reconstruct(scene: Scene, out: str | Path, setup: RunSetup, resume: bool = F
     log.addHandler(handler)
     watch = Stopwatch()
     try:
-        summary = _frame_loop(out, setup, obs, ws, source, seeds, first, watch)
+        summary = _frame_loop(out, setup, obs, ws, source, seeds, first, watch, scene.volume)
     finally:
         log.removeHandler(handler)
         handler.close()
@@ -153,7 +153,7 @@ def _views(obs, t: int, dtype) -> Views:
     return Views(obs.cameras, torch.as_tensor(obs.frame(t), dtype=dtype))
 
 
-def _frame_loop(out, setup, obs, ws, source, seeds, first, watch) -> dict:
+def _frame_loop(out, setup, obs, ws, source, seeds, first, watch, volume) -> dict:
     cfg = setup.config
     start, stop = cfg.frames
     started = time.perf_counter()
@@ -172,7 +172,7 @@ def _frame_loop(out, setup, obs, ws, source, seeds, first, watch) -> dict:
             log.info("resuming after frame %d", first - 1)
         for t in range(first, stop):
             tic = time.perf_counter()
-            smoke = _save(out, _one_frame(smoke, t, source, obs, ws, cfg, bar, watch, out), t)
+            smoke = _save(out, _one_frame(smoke, t, source, obs, ws, cfg, bar, watch, out, volume), t)
             log.info("frame %d: %d physical, %d visual particles, %.1f s", t, smoke.p.shape[0], smoke.x.shape[0],
                      time.perf_counter() - tic)
             bar.advance()
@@ -195,14 +195,23 @@ def _first_frame(source, seeds, obs, ws, cfg, bar, watch) -> Smoke:
     return smoke
 
 
-def _one_frame(prev: Smoke, t, source, obs, ws, cfg, bar, watch, out) -> Smoke:
+def inside(p: torch.Tensor, volume, margin: float) -> torch.Tensor:
+    """[N] bool: particles within ``margin`` of the scene volume (everything when the scene has none)."""
+    if volume is None:
+        return torch.ones(p.shape[0], dtype=torch.bool)
+    lo = torch.as_tensor(volume.min, dtype=p.dtype) - margin
+    hi = torch.as_tensor(volume.max, dtype=p.dtype) + margin
+    return ((p >= lo) & (p <= hi)).all(dim=1)
+
+
+def _one_frame(prev: Smoke, t, source, obs, ws, cfg, bar, watch, out, volume) -> Smoke:
     views = _views(obs, t, ws.dtype)
     emit(prev, source, cfg, t)
     try:
         with watch.measure("dynamics"):
             dyn = fit_dynamics(prev, ws, views, cfg, frame_generator(cfg.seed, t), bar, watch)
         smoke = Smoke(t, dyn.p, dyn.u, prev.age + ws.dt, dyn.x, prev.color, prev.scale, prev.rotation, prev.opacity)
-        smoke.keep_physical(~ws.isolated(smoke.p))
+        smoke.keep_physical(~ws.isolated(smoke.p) & inside(smoke.p, volume, ws.solver.h))
         with watch.measure("appearance"):
             losses = fit_appearance(smoke, views, cfg, frame_generator(cfg.seed, t), bar, watch)
     except FloatingPointError as err:
