@@ -2,12 +2,12 @@
 from __future__ import annotations
 
 import dataclasses
-import json
 import logging
 from pathlib import Path
 
 import click
 
+from fluidnexus.atomic import read_json
 from fluidnexus.errors import InputError
 from fluidnexus.scene import load_scene
 from fluidnexus.video import parse_frame_range
@@ -44,10 +44,7 @@ def resolve_resolution(text: str, scene) -> float:
 def load_overrides(path: Path | None) -> dict:
     if path is None:
         return {}
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as err:
-        raise InputError(path, None, f"cannot read settings ({err})") from None
+    data = read_json(path, "settings file")
     return data.get("recon", data)
 
 
@@ -84,7 +81,7 @@ def recon(scene_dir: Path, out: Path, frames_text, resolution, channels, config_
     model = None
     if model_file is not None:
         try:
-            model = ModelConfig.from_dict(json.loads(model_file.read_text()).get("model", {}))
+            model = ModelConfig.from_dict(read_json(model_file, "model file").get("model", {}))
         except (OSError, ValueError) as err:
             raise InputError(model_file, "model", str(err)) from None
     start_engine(arch)

@@ -1,7 +1,6 @@
 """``fluidnexus render`` and ``fluidnexus eval``: look at a run and score it."""
 from __future__ import annotations
 
-import json
 import logging
 from pathlib import Path
 

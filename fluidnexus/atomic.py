@@ -1,4 +1,4 @@
-"""Atomic writes: a file or folder appears complete under its final name, or not at all."""
+"""Atomic writes (a file or folder appears complete under its final name, or not at all) and JSON reading."""
 from __future__ import annotations
 
 import contextlib
@@ -65,3 +65,19 @@ def write_json(dest: str | Path, data) -> None:
     """Write ``data`` as indented JSON to ``dest`` atomically."""
     with atomic_file(dest) as tmp:
         tmp.write_text(json.dumps(data, indent=2) + "\n")
+
+
+def read_json(path: str | Path, what: str = "file") -> dict:
+    """Read a JSON object; a missing, unreadable or malformed file raises :class:`InputError` naming it."""
+    from .errors import InputError
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, None, f"{what} not found")
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise InputError(path, None, f"not valid JSON ({err})") from None
+    if not isinstance(data, dict):
+        raise InputError(path, None, "expected a JSON object")
+    return data

@@ -1,10 +1,10 @@
 """Reading a run folder (written by ``recon``, ``predict`` or ``interact``; layout in docs/run-format.md)."""
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
+from .atomic import read_json
 from .errors import InputError
 from .scene import Scene, load_scene
 from .state import FrameState, frame_path, load_frame
@@ -48,22 +48,13 @@ class Run:
         return load_scene(self.scene_dir, check_videos=check_videos)
 
 
-def _read_json(path: Path) -> dict:
-    if not path.exists():
-        raise InputError(path, None, "file not found: not a fluidnexus run folder")
-    try:
-        return json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise InputError(path, None, f"not valid JSON ({err})") from None
-
-
 def open_run(path: str | Path) -> Run:
     """Open a run folder; it must hold at least one frame."""
     root = Path(path)
-    info = _read_json(root / "run.json")
+    info = read_json(root / "run.json", "file not found: not a fluidnexus run folder;")
     if info.get("format") != RUN_FORMAT:
         raise InputError(root / "run.json", "format", f"unknown format tag {info.get('format')!r}")
-    run = Run(root, info, _read_json(root / "config.json"))
+    run = Run(root, info, read_json(root / "config.json"))
     if not run.frames:
         raise InputError(root / "frames", None, "the run has no reconstructed frame yet")
     return run

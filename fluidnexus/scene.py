@@ -8,13 +8,12 @@ Two loaders, on purpose:
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from .atomic import write_json
+from .atomic import read_json, write_json
 from .camera import Camera
 from .errors import InputError, require_finite, require_positive
 
@@ -121,14 +120,7 @@ class Scene:
 # ---- reading --------------------------------------------------------------------------------------------
 def _read_json(path: Path) -> dict:
     scene_file = path / SCENE_FILE if path.is_dir() else path
-    if not scene_file.exists():
-        raise InputError(scene_file, None, "file not found")
-    try:
-        data = json.loads(scene_file.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise InputError(scene_file, None, f"not valid JSON ({err})") from None
-    if not isinstance(data, dict):
-        raise InputError(scene_file, None, "expected a JSON object")
+    data = read_json(scene_file)
     if data.get("format") != FORMAT:
         raise InputError(scene_file, "format", f"unknown format tag {data.get('format')!r}; expected {FORMAT!r}")
     return data

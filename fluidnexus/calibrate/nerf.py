@@ -6,9 +6,9 @@ or a folder of frames. Intrinsics come from ``fl_x``/``fl_y``/``cx``/``cy`` when
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
+from ..atomic import read_json
 from ..errors import InputError
 from ..camera import Camera
 from ..video import VIDEO_SUFFIXES, probe_video
@@ -30,12 +30,7 @@ def find_media(base: Path) -> Path | None:
 def read_nerf(path: str | Path) -> tuple[dict[str, Recording], float | None]:
     """Parse a transforms.json into recordings; also return its ``fps`` if it states one."""
     path = Path(path)
-    if not path.exists():
-        raise InputError(path, None, "file not found")
-    try:
-        data = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise InputError(path, None, f"not valid JSON ({err})") from None
+    data = read_json(path)
     frames = data.get("frames")
     if not isinstance(frames, list) or not frames:
         raise InputError(path, "frames", "missing or empty")

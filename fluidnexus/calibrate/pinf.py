@@ -7,12 +7,12 @@ OpenGL axes). The reconstruction box is ``world = R (voxel_scale * p) + t`` for 
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from ..atomic import read_json
 from ..camera import Camera
 from ..errors import InputError, require_finite
 from ..scene import GroundTruth, Scene, Source, Volume
@@ -35,12 +35,7 @@ class PinfCapture:
 def read_pinf(info_path: str | Path) -> PinfCapture:
     """Parse an info.json; videos are looked up next to it."""
     info_path = Path(info_path)
-    if not info_path.exists():
-        raise InputError(info_path, None, "file not found")
-    try:
-        info = json.loads(info_path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise InputError(info_path, None, f"not valid JSON ({err})") from None
+    info = read_json(info_path)
     entries = [(f"{split}[{i}]", e) for split in ("train_videos", "test_videos")
                for i, e in enumerate(info.get(split, []))]
     if not entries:

@@ -24,7 +24,7 @@ import numpy as np
 import torch
 
 from .. import engine
-from ..atomic import write_json
+from ..atomic import read_json, write_json
 from ..engine import ModelConfig, SolverConfig
 from ..errors import InputError, RunError
 from ..progress import progress
@@ -98,9 +98,7 @@ def _prepare_folder(out: Path, scene: Scene, setup: RunSetup, frames: tuple[int,
         config_file = out / "config.json"
         if not config_file.exists():
             raise InputError(out, None, "--resume: no reconstruction run here (config.json missing)")
-        import json
-
-        saved = json.loads(config_file.read_text())
+        saved = read_json(config_file)
         diff = [f"{section}.{k}" for section in resolved
                 for k in differing_keys(saved.get(section, {}), resolved[section])]
         if diff:
