@@ -49,12 +49,14 @@ class Buoyancy:
     """Buoyancy alpha exp(-decay age) g (FluidNexus Eq. S1; decay = 0 is the paper's constant term).
 
     Attributes:
-        alpha: buoyancy coefficient (dimensionless, < 0 rises); ScalarFlow -3, FluidNexus sets -6.
+        alpha: buoyancy coefficient (dimensionless, < 0 rises). The release's ScalarFlow -3 (FluidNexus sets -6)
+            multiplies g = 9.8 in its x100 space, i.e. 9.8 cm/s^2; with g in m/s^2 the same acceleration is
+            alpha = -0.03 (-0.06): 0.29 m/s^2 upward.
         decay: decay rate of buoyancy with particle age [1/s]; 0 disables the decay.
         gravity: g [m/s^2] (not fitted).
     """
 
-    alpha: float = -3.0
+    alpha: float = -0.03
     decay: float = 0.0
     gravity: tuple = (0.0, -9.8, 0.0)
     kind: ClassVar[str] = "buoyancy"

@@ -86,8 +86,9 @@ class ModelConfig:
 
     @classmethod
     def scalarflow(cls) -> "ModelConfig":
-        """The paper's ScalarFlow model: buoyancy alpha = -3, drag k = 3 in still air."""
-        return cls((Buoyancy(alpha=-3.0), Drag(k=3.0)))
+        """The paper's ScalarFlow model: buoyancy alpha = -3 in the release's x100 space (alpha = -0.03 with g in
+        m/s^2, i.e. 0.29 m/s^2 upward), drag k = 3 1/s in still air."""
+        return cls((Buoyancy(alpha=-0.03), Drag(k=3.0)))
 
     def term(self, kind: str):
         for t in self.terms:
