@@ -111,9 +111,10 @@ def main():
     from fluidnexus import engine
 
     engine.init(arch=args.arch, precision=args.precision)
-    from fluidnexus.engine.splat import engine_device, engine_dtype, render
+    from fluidnexus.engine.splat import render
+    from fluidnexus.engine.tensors import torch_device, torch_dtype
 
-    dtype, dev = engine_dtype(), engine_device()
+    dtype, dev = torch_dtype(), torch_device()
     background = torch.zeros(args.channels, dtype=dtype, device=dev)
 
     def rend(camera, *params):

@@ -14,7 +14,10 @@ from fluidnexus.errors import InputError, RunError
 
 from .calibrate import calibrate
 from .demo import demo
+from .diagnose import diagnose
 from .export import export
+from .interact import interact
+from .predict import predict
 from .recon import recon
 from .refine import refine
 from .show import evaluate, render
@@ -66,3 +69,6 @@ main.add_command(export)
 main.add_command(demo)
 main.add_command(synth)
 main.add_command(refine)
+main.add_command(predict)
+main.add_command(interact)
+main.add_command(diagnose)

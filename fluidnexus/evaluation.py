@@ -7,6 +7,10 @@
   with each frame's appearance and scored the same way (FluidNexus Sec. 4).
 - divergence: mean |div V| over a dense grid in the scene volume and over time (definition in docs/evaluation.md),
   plus the same mean restricted to grid nodes inside the smoke (a visual particle within h).
+- prediction (runs made by ``predict`` / ``interact``): the predicted frames against the real future of the
+  scene's input cameras (``input_view``) and of the ground-truth cameras (``novel_views``), with the
+  repeat-last-frame reference on the input cameras (the last observed real frame held still,
+  ``repeat_last_input_view``); frames past the end of the videos are not scored.
 """
 from __future__ import annotations
 
@@ -16,6 +20,7 @@ import numpy as np
 import torch
 
 from . import engine
+from .engine.tensors import torch_dtype
 from .errors import InputError
 from .frames import render_state
 from .metrics import psnr, ssim
@@ -58,8 +63,7 @@ def resimulate(run: Run, frames: list[int]) -> list[FrameState]:
     """States whose visual positions come only from advecting the first frame through the saved velocities."""
     first = run.state(frames[0])
     out = [first]
-    x = torch.as_tensor(first.visual_positions, dtype=torch.float64 if engine.current().precision == "f64"
-                        else torch.float32)
+    x = torch.as_tensor(first.visual_positions, dtype=torch_dtype())
     query = None
     for t in frames[1:]:
         state = run.state(t)
@@ -100,6 +104,45 @@ def divergence(run: Run, frames: list[int], grid: int = DIVERGENCE_GRID) -> dict
             "grid": [int(r) for r in res], "unit": "1/s"}
 
 
+PREDICTION_KINDS = ("predict", "interact")
+
+
+def prediction(run: Run, lpips_weights=None) -> dict:
+    """Scores of a prediction run's frames on the input cameras' real future and on the ground-truth cameras."""
+    scene = run.scene(check_videos=False)
+    start = int(run.info["start_frame"])
+    frames = [t for t in run.frames if t < scene.frame_count]
+    if not frames:
+        raise InputError(run.root / "run.json", "frames", f"no predicted frame lies inside the videos "
+                                                          f"({scene.frame_count} frames)")
+    inputs = [v for v in scene.with_role("input") if v.video is not None]
+    states = [run.state(t) for t in frames]
+
+    def real(video, cam, rows):
+        clip = read_video(scene.root / video, frames=slice(min(rows), max(rows) + 1), size=(cam.width, cam.height),
+                          channels=run.channels)
+        return clip[[t - min(rows) for t in rows]]
+
+    input_scores, repeat_scores = {}, {}
+    for view in inputs:
+        cam = view.camera.scaled(run.resolution)
+        truth = real(view.video, cam, frames)
+        input_scores[view.name] = _score([render_state(s, cam) for s in states], truth, lpips_weights)
+        last = real(view.video, cam, [start])[0]
+        repeat_scores[view.name] = _score([last] * len(frames), truth, lpips_weights)
+    novel = {}
+    for gt in load_ground_truth(scene.root):
+        cam = gt.camera.scaled(run.resolution)
+        novel[gt.name] = _score([render_state(s, cam) for s in states], real(gt.video, cam, frames), lpips_weights)
+
+    def summary(scores: dict) -> dict:
+        return {**{k: _mean(getattr(s, k) for s in scores.values()) for k in ("psnr", "ssim", "lpips")},
+                "per_view": {k: v.to_dict() for k, v in scores.items()}}
+
+    return {"frames": [frames[0], frames[-1] + 1], "start_frame": start, "input_view": summary(input_scores),
+            "repeat_last_input_view": summary(repeat_scores), "novel_views": summary(novel)}
+
+
 def evaluate(run: Run, lpips_weights=None) -> dict:
     """Score a run: the JSON document of ``fluidnexus eval`` (keys in docs/evaluation.md)."""
     scene = run.scene(check_videos=False)
@@ -120,7 +163,10 @@ def evaluate(run: Run, lpips_weights=None) -> dict:
             bar.advance()
     mean = {k: _mean(getattr(s, k) for s in per_view.values()) for k in ("psnr", "ssim", "lpips")}
     resim_mean = {k: _mean(getattr(s, k) for s in resim_scores.values()) for k in ("psnr", "ssim", "lpips")}
-    return {"novel_view": {**mean, "per_view": {k: v.to_dict() for k, v in per_view.items()}},
-            "resimulation": resim_mean, "divergence": divergence(run, frames),
-            "frames": [frames[0], frames[-1] + 1],
-            "resolution": {"scale": run.resolution, "width": cam.width, "height": cam.height}}
+    result = {"novel_view": {**mean, "per_view": {k: v.to_dict() for k, v in per_view.items()}},
+              "resimulation": resim_mean, "divergence": divergence(run, frames),
+              "frames": [frames[0], frames[-1] + 1],
+              "resolution": {"scale": run.resolution, "width": cam.width, "height": cam.height}}
+    if run.info.get("kind") in PREDICTION_KINDS:
+        result["prediction"] = prediction(run, lpips_weights)
+    return result

@@ -7,6 +7,7 @@ import numpy as np
 import torch
 
 from . import engine
+from .engine.tensors import torch_dtype
 from .camera import Camera
 from .scene import Volume
 from .state import FrameState
@@ -14,7 +15,7 @@ from .state import FrameState
 
 def render_state(state: FrameState, camera: Camera) -> np.ndarray:
     """The visual particles of ``state`` seen by ``camera``: float32 [H, W, C] in [0, 1] (black background)."""
-    dtype = torch.float64 if engine.current().precision == "f64" else torch.float32
+    dtype = torch_dtype()
 
     def t(a):
         return torch.as_tensor(np.asarray(a), dtype=dtype)

@@ -11,6 +11,7 @@ reallocated wider and refilled, up to ``max_width``, beyond which :class:`Neighb
 Nothing is ever dropped silently.
 """
 import taichi as ti
+import torch
 
 from .runtime import real
 
@@ -139,6 +140,36 @@ def _fill_table(query: ti.template(), qrow: int, nq: int, inv_h: float, h2: floa
         ti.atomic_max(max_count[None], cnt)
 
 
+@ti.kernel
+def _count_sources(nq: int, nbr: ti.template(), count: ti.template(), out: ti.types.ndarray()):
+    """out[j + 1] += number of queries listing source j (integer atomics: the counts do not depend on order)."""
+    for i in range(nq):
+        for k in range(count[i]):
+            ti.atomic_add(out[nbr[i, k] + 1], 1)
+
+
+@ti.kernel
+def _fill_sources(nq: int, nbr: ti.template(), count: ti.template(), cursor: ti.types.ndarray(),
+                  out: ti.types.ndarray()):
+    """Append each query i to the list of every source it lists (in scheduling order; sorted afterwards)."""
+    for i in range(nq):
+        for k in range(count[i]):
+            out[ti.atomic_add(cursor[nbr[i, k]], 1)] = i
+
+
+@ti.kernel
+def _sort_segments(n: int, start: ti.types.ndarray(), items: ti.types.ndarray()):
+    """Sort items[start[j]:start[j + 1]] ascending for every j (insertion sort: the lists are short)."""
+    for j in range(n):
+        for a in range(start[j] + 1, start[j + 1]):
+            v = items[a]
+            b = a
+            while b > start[j] and items[b - 1] > v:
+                items[b] = items[b - 1]
+                b -= 1
+            items[b] = v
+
+
 class NeighborTable:
     """Neighbours within radius ``h`` of up to ``query_capacity`` points among up to ``source_capacity`` points.
 
@@ -211,6 +242,23 @@ class NeighborTable:
                                        f"allows at most {self.max_width} (raise max_width or check the input)")
             self._allocate(min(self.max_width, ((needed * 5 // 4) + 7) // 8 * 8))
         self.n_query = n_query
+
+    def transpose(self, n_src: int) -> tuple[torch.Tensor, torch.Tensor]:
+        """The table read the other way: for each source j, the queries that have j as a neighbour.
+
+        Each list is in increasing query order, so a gather over it sums in a fixed order (a deterministic
+        adjoint where the forward scattered nothing and the table is not symmetric).
+
+        Returns:
+            (start [n_src + 1] int32, queries [pairs] int32): source j's queries are queries[start[j]:start[j + 1]].
+        """
+        count = torch.zeros(n_src + 1, dtype=torch.int32)
+        _count_sources(self.n_query, self.nbr, self.count, count)
+        start = torch.cumsum(count, 0, dtype=torch.int32)  # count[j + 1] holds j's count: start[0] = 0
+        queries = torch.empty(max(int(start[-1]), 1), dtype=torch.int32)
+        _fill_sources(self.n_query, self.nbr, self.count, start[:-1].clone(), queries)
+        _sort_segments(n_src, start, queries)
+        return start, queries
 
     def counts(self):
         """Neighbour counts of the active queries as a numpy int array [n_query]."""

@@ -238,8 +238,18 @@ class PBFSimulator:
         self.set_model(self.model)
         self._tape: list = []
         self.token = None
+        self.obstacle = None
 
     # ------------------------------------------------------------------ state
+    def set_obstacle(self, obstacle) -> None:
+        """A rigid body (``engine.obstacle``) the particles cannot enter, or None.
+
+        With an obstacle every point inside the body moves to its surface after the prediction and after each
+        constraint iteration (one-way coupling, FluidNexus Sec. 4.2); such a step has no :meth:`backward`.
+        """
+        self.obstacle = obstacle
+        self.token = None
+
     def set_model(self, model: ModelConfig) -> None:
         """Use ``model`` (terms and parameter values) from the next step on."""
         self.model = model
@@ -308,6 +318,8 @@ class PBFSimulator:
                            workspace={name: self._workspaces[(term.kind, name)] for name, _ in term.workspace})
             term.launch(ctx, off)
         self._record(predict, n, s.dt, self.p, self.u, self.force, self.x)
+        if self.obstacle is not None:
+            self.obstacle.project(self.x, 0, n)
         if s.iterations:
             self.solve_table.build(self.x, n, h, src_row=0)
         nbr, cnt = self.solve_table.nbr, self.solve_table.count
@@ -319,6 +331,8 @@ class PBFSimulator:
             self._record(accumulate_delta, FAST, n, it, h, wc, gc, s.rest_density, s.scorr_k, s.scorr_n, w_dq, self.x,
                          nbr, cnt, self.lam, self.dp, adjoint=delta_adjoint)
             self._record(apply_delta, n, it, bool(s.averaging), cnt, self.dp, self.x)
+            if self.obstacle is not None:  # one-way rigid coupling after each constraint iteration
+                self.obstacle.project(self.x, it + 1, n)
         self._record(update_velocity, n, s.iterations, s.dt, self.p, self.x, self.u_out)
         self.token = object()
 
@@ -337,6 +351,8 @@ class PBFSimulator:
         """
         if self.token is None:
             raise RuntimeError("backward() needs a forward() on the loaded state first")
+        if self.obstacle is not None:
+            raise RuntimeError("a step with an obstacle is not differentiated (set_obstacle(None) first)")
         for f in self._grad_fields + list(self._workspaces.values()) + [self.theta]:
             f.grad.fill(0)
         zeros = torch.zeros((self.n, 3), dtype=tensors.torch_dtype())

@@ -1,6 +1,7 @@
 """Fields of the particle gas at arbitrary points: velocity V(x) (FluidNexus Eq. 2), density rho(x), divergence.
 
-Differentiable with ``ti.ad`` w.r.t. the query points, the particle positions and the particle velocities.
+Differentiable w.r.t. the query points, the particle positions and the particle velocities (a hand-written,
+deterministic adjoint of the neighbour sums and ``ti.ad`` of the normalisation).
 """
 import numpy as np
 import taichi as ti
@@ -9,29 +10,51 @@ import torch
 from . import tensors
 from .neighbors import NeighborTable
 from .runtime import real
-from .sph import poly6, poly6_coef
+from .sph import poly6, poly6_coef, poly6_grad
 
 
 @ti.kernel
-def accumulate_interpolation(fast: ti.template(), nq: int, h: float, w_coef: float, q: ti.template(), p: ti.template(),
-                             u: ti.template(), nbr: ti.template(), count: ti.template(), num: ti.template(),
-                             den: ti.template()):
+def accumulate_interpolation(nq: int, h: float, w_coef: float, q: ti.template(), p: ti.template(), u: ti.template(),
+                             nbr: ti.template(), count: ti.template(), num: ti.template(), den: ti.template()):
     # num(x) = sum_j u_j W(x - p_j), den(x) = rho(x) = sum_j W(x - p_j)   (FluidNexus Eq. 2)
-    # fast: local sums for the forward pass; not fast: the per-pair form whose ti.ad adjoint is correct (pbf.py)
     for i in range(nq):
         acc_n, acc_d = ti.Vector([0.0, 0.0, 0.0]), 0.0
         for k in range(count[i]):
             j = nbr[i, k]
             w = poly6((q[i] - p[j]).norm_sqr(), h, w_coef)
-            if ti.static(fast):
-                acc_n += w * u[j]
-                acc_d += w
-            else:
-                num[i] += w * u[j]
-                den[i] += w
-        if ti.static(fast):
-            num[i] += acc_n
-            den[i] += acc_d
+            acc_n += w * u[j]
+            acc_d += w
+        num[i] += acc_n
+        den[i] += acc_d
+
+
+# Hand-written adjoint of accumulate_interpolation, as two gathers (no float atomics, so reruns are
+# bit-identical): each query sums over its own neighbours, each particle over the queries that list it (the
+# transposed table, in increasing query order). With c_ij = num_bar_i . u_j + den_bar_i and r = q_i - p_j:
+# q_bar_i = sum_j c_ij grad W(r), p_bar_j = -sum_i c_ij grad W(r), u_bar_j = sum_i W(r) num_bar_i.
+@ti.kernel
+def query_adjoint(nq: int, h: float, w_coef: float, q: ti.template(), p: ti.template(), u: ti.template(),
+                  nbr: ti.template(), count: ti.template(), num: ti.template(), den: ti.template()):
+    for i in range(nq):
+        acc = ti.Vector([0.0, 0.0, 0.0])
+        for k in range(count[i]):
+            j = nbr[i, k]
+            acc += (num.grad[i].dot(u[j]) + den.grad[i]) * poly6_grad(q[i] - p[j], h, w_coef)
+        q.grad[i] += acc
+
+
+@ti.kernel
+def source_adjoint(n_src: int, h: float, w_coef: float, q: ti.template(), p: ti.template(), u: ti.template(),
+                   start: ti.types.ndarray(), queries: ti.types.ndarray(), num: ti.template(), den: ti.template()):
+    for j in range(n_src):
+        acc_p, acc_u = ti.Vector([0.0, 0.0, 0.0]), ti.Vector([0.0, 0.0, 0.0])
+        for s in range(start[j], start[j + 1]):
+            i = queries[s]
+            r = q[i] - p[j]
+            acc_p -= (num.grad[i].dot(u[j]) + den.grad[i]) * poly6_grad(r, h, w_coef)
+            acc_u += poly6(r.norm_sqr(), h, w_coef) * num.grad[i]
+        p.grad[j] += acc_p
+        u.grad[j] += acc_u
 
 
 @ti.kernel
@@ -79,9 +102,8 @@ class FieldQuery:
         for fld in (self.num, self.den, self.vel):
             fld.fill(0)
         self.table.build(self.p, self.np, self.h, query=self.q, n_query=self.nq)
-        self._args = (self.nq, self.h, poly6_coef(self.h), self.q, self.p, self.u, self.table.nbr, self.table.count,
-                      self.num, self.den)
-        accumulate_interpolation(True, *self._args)
+        self._args = (self.h, poly6_coef(self.h), self.q, self.p, self.u)
+        accumulate_interpolation(self.nq, *self._args, self.table.nbr, self.table.count, self.num, self.den)
         normalize_velocity(self.nq, self.num, self.den, self.vel)
         self.token = object()
 
@@ -102,7 +124,9 @@ class FieldQuery:
         if grad_den is not None:
             tensors.load(self.den.grad, tensors.as_tensor(grad_den).reshape(-1, 1))
         normalize_velocity.grad(self.nq, self.num, self.den, self.vel)
-        accumulate_interpolation.grad(False, *self._args)
+        query_adjoint(self.nq, *self._args, self.table.nbr, self.table.count, self.num, self.den)
+        start, queries = self.table.transpose(self.np)
+        source_adjoint(self.np, *self._args, start, queries, self.num, self.den)
         return (tensors.store(self.q.grad, self.nq), tensors.store(self.p.grad, self.np),
                 tensors.store(self.u.grad, self.np))
 

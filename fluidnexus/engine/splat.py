@@ -13,31 +13,23 @@ from dataclasses import dataclass
 
 import torch
 
-from .runtime import current
 from .splat_bin import count_tiles, fill_tiles
-from .splat_buffers import (clear_gaussian_grads, clear_scalar_grads, load_scalar_grads, load_scalars, load_vectors,
-                            splat_fields, store_scalar_grads, store_scalars, store_vector_grads)
+from .splat_buffers import clear_gaussian_grads, clear_scalar_grads, splat_fields
 from .splat_project import DEFAULT_NEAR, bound_footprints, pack_camera, project_gaussians
 from .splat_raster import rasterize
+from .tensors import load, store, torch_device, torch_dtype
 
 DEFAULT_TILE = 16
 
 _tokens = itertools.count()
 
 
-def engine_dtype() -> torch.dtype:
-    """The torch dtype of the running Taichi precision (float64 or float32)."""
-    return torch.float64 if current().precision == "f64" else torch.float32
-
-
-def engine_device() -> torch.device:
-    """The torch device whose tensors the running Taichi arch reads in place."""
-    return torch.device("cuda" if current().arch == "cuda" else "cpu")
-
-
 @dataclass
 class _Frame:
-    """What one forward leaves for its backward: the image layout, tile lists and per-pixel state."""
+    """What one forward leaves for its backward: the image layout, tile lists and per-pixel state.
+
+    ``first`` and ``slots`` list each Gaussian's tile entries (``splat_bin.fill_tiles``) for the backward.
+    """
 
     token: int
     n: int
@@ -55,11 +47,13 @@ class _Frame:
     power_min: torch.Tensor
     t_final: torch.Tensor
     last: torch.Tensor
+    first: torch.Tensor
+    slots: torch.Tensor
 
     def raster_args(self, fields):
         return (fields.gauss, fields.pixels, fields.background, self.channels, self.with_depth, self.tile,
                 self.width, self.height, self.tiles_x, self.n_tiles, self.start, self.lists, self.rect, self.power_min,
-                self.t_final, self.last)
+                self.t_final, self.last, self.n, self.first, self.slots)
 
 
 def _rows(t: torch.Tensor) -> torch.Tensor:
@@ -71,15 +65,11 @@ def _rows(t: torch.Tensor) -> torch.Tensor:
 
 def _load_inputs(fields, frame: _Frame, means, scales, quats, opacities, colors, background) -> None:
     """Copy the inputs and the camera into the Taichi fields and project the Gaussians."""
-    g, n = fields.gauss, frame.n
-    load_vectors(g.means, _rows(means), n)
-    load_vectors(g.scales, _rows(scales), n)
-    load_vectors(g.quats, _rows(quats), n)
-    load_scalars(g.opacities, _rows(opacities), n)
-    load_scalars(g.colors, _rows(colors.reshape(-1)), n * frame.channels)
-    load_scalars(fields.background, background.contiguous(), frame.channels)
-    load_scalars(fields.camera, frame.camera_packed, frame.camera_packed.shape[0])
-    project_gaussians(g, fields.camera, n)
+    g = fields.gauss
+    for field, values in ((g.means, means), (g.scales, scales), (g.quats, quats), (g.opacities, opacities),
+                          (g.colors, colors), (fields.background, background), (fields.camera, frame.camera_packed)):
+        load(field, values)
+    project_gaussians(g, fields.camera, frame.n)
     fields.owner = frame.token
 
 
@@ -94,9 +84,13 @@ def _bin(fields, frame: _Frame) -> None:
     counts = torch.zeros(frame.n_tiles + 1, dtype=torch.int32, device=dev)
     count_tiles(rect, n, frame.tile, frame.tiles_x, counts)
     start = torch.cumsum(counts, 0, dtype=torch.int32)
-    lists = torch.empty(max(int(start[-1]), 1), dtype=torch.int32, device=dev)
-    fill_tiles(_rows(order), rect, n, frame.tile, frame.tiles_x, start[:-1].clone(), lists)
+    entries = max(int(start[-1]), 1)
+    lists = torch.empty(entries, dtype=torch.int32, device=dev)
+    slots = torch.empty(entries, dtype=torch.int32, device=dev)
+    first = torch.zeros(n + 1, dtype=torch.int32, device=dev)
+    fill_tiles(_rows(order), rect, n, frame.tile, frame.tiles_x, start[:-1].clone(), lists, first, slots)
     frame.start, frame.lists, frame.rect, frame.power_min = start, lists, rect, power_min
+    frame.first, frame.slots = first, slots
 
 
 def prepare_frame(camera, means, scales, quats, opacities, colors, background, near: float, tile: int,
@@ -114,7 +108,7 @@ def prepare_frame(camera, means, scales, quats, opacities, colors, background, n
                    torch.as_tensor(pack_camera(camera, near), dtype=dtype, device=dev),
                    start=None, lists=None, rect=None, power_min=None,
                    t_final=torch.empty(width * height, dtype=dtype, device=dev),
-                   last=torch.empty(width * height, dtype=torch.int32, device=dev))
+                   last=torch.empty(width * height, dtype=torch.int32, device=dev), first=None, slots=None)
     fields = splat_fields()
     fields.reserve(n, width * height, channels)
     _load_inputs(fields, frame, means, scales, quats, opacities, colors, background)
@@ -138,10 +132,10 @@ class _RenderFunction(torch.autograd.Function):
         image = torch.empty((height, width, channels), dtype=dtype, device=dev)
         alpha = torch.empty((height, width), dtype=dtype, device=dev)
         depth = torch.empty((height, width) if with_depth else (0,), dtype=dtype, device=dev)
-        store_scalars(pix.image, image.view(-1), width * height * channels)
-        store_scalars(pix.alpha, alpha.view(-1), width * height)
+        store(pix.image, width * height * channels, out=image)
+        store(pix.alpha, width * height, out=alpha)
         if with_depth:
-            store_scalars(pix.depth, depth.view(-1), width * height)
+            store(pix.depth, width * height, out=depth)
         ctx.frame = frame
         ctx.save_for_backward(means, scales, quats, opacities, colors, background)
         ctx.set_materialize_grads(False)
@@ -164,23 +158,17 @@ class _RenderFunction(torch.autograd.Function):
             if grad is None:  # that output does not reach the loss
                 clear_scalar_grads(field, size)
             else:
-                load_scalar_grads(field, grad.contiguous().view(-1), size)
+                load(field.grad, grad)
         rasterize.grad(*frame.raster_args(fields))
         project_gaussians.grad(g, fields.camera, n)
-        outs = []
-        for field, like in ((g.means, means), (g.scales, scales), (g.quats, quats)):
-            out = torch.empty_like(_rows(like))
-            store_vector_grads(field, out, n)
-            outs.append(out[:n])
-        grad_opacities = torch.empty_like(_rows(opacities))
-        store_scalar_grads(g.opacities, grad_opacities, n)
-        grad_colors = torch.empty_like(_rows(colors))
-        store_scalar_grads(g.colors, grad_colors.view(-1), n * frame.channels)
+        grads = [store(field.grad, count, out=torch.empty(like.shape, dtype=like.dtype, device=like.device))
+                 for field, like, count in ((g.means, means, n), (g.scales, scales, n), (g.quats, quats, n),
+                                            (g.opacities, opacities, n), (g.colors, colors, n * frame.channels))]
         grad_background = None
         if ctx.needs_input_grad[5] and grad_image is not None:
             # C = ... + T_N c_bg (Kerbl et al. 2023, Eq. 3 with a background): dL/dc_bg = sum_p T_N(p) dL/dC(p).
             grad_background = frame.t_final @ grad_image.reshape(-1, frame.channels)
-        return (*outs, grad_opacities[:n], grad_colors[:n], grad_background, None, None, None, None)
+        return (*grads, grad_background, None, None, None, None)
 
 
 def render(camera, means: torch.Tensor, scales: torch.Tensor, quats: torch.Tensor, opacities: torch.Tensor,
@@ -217,7 +205,7 @@ def render(camera, means: torch.Tensor, scales: torch.Tensor, quats: torch.Tenso
     if n and bool((quats.detach() == 0).all(dim=1).any()):
         raise ValueError("quats contains a zero quaternion")
     out_device = means.device
-    dtype, dev = engine_dtype(), engine_device()
+    dtype, dev = torch_dtype(), torch_device()
     if background is None:
         background = torch.zeros(channels, dtype=dtype, device=dev)
     if tuple(background.shape) != (channels,):

@@ -19,19 +19,29 @@ def count_tiles(rect: ti.types.ndarray(), n: ti.i32, tile: ti.i32, tiles_x: ti.i
 
 @ti.kernel
 def fill_tiles(order: ti.types.ndarray(), rect: ti.types.ndarray(), n: ti.i32, tile: ti.i32, tiles_x: ti.i32,
-               cursor: ti.types.ndarray(), lists: ti.types.ndarray()):
+               cursor: ti.types.ndarray(), lists: ti.types.ndarray(), first: ti.types.ndarray(),
+               slots: ti.types.ndarray()):
     """Append the Gaussians, visited in ``order`` (front to back), to the lists of the tiles they touch.
+
+    Also records where each Gaussian went, so that its per-tile gradients can be summed in a fixed order
+    (``splat_raster.gather_gradients``).
 
     Args:
         order: [n] int32, Gaussian indices sorted by depth. rect: [n, 4] pixel rectangles (first/last column, row).
         cursor: [tiles] int32, in: each tile's list start; used as the write position.
         lists: [entries] int32 out.
+        first: [n + 1] int32, in: first[0] = 0; out: the Gaussian order[r] owns slots[first[r]:first[r + 1]].
+        slots: [entries] int32 out, the list entries of each Gaussian, its tiles in row-major order.
     """
     ti.loop_config(serialize=True)
-    for k in range(n):
-        i = order[k]
+    for r in range(n):
+        i = order[r]
+        s = first[r]
         for ty in range(rect[i, 2] // tile, rect[i, 3] // tile + 1):
             for tx in range(rect[i, 0] // tile, rect[i, 1] // tile + 1):
                 t = ty * tiles_x + tx
                 lists[cursor[t]] = i
+                slots[s] = cursor[t]
                 cursor[t] += 1
+                s += 1
+        first[r + 1] = s

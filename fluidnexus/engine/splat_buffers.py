@@ -1,8 +1,9 @@
-"""Taichi fields of the splat renderer, grown on demand, and the kernels that move torch tensors in and out.
+"""Taichi fields of the splat renderer, grown on demand, and the kernels that clear their gradients.
 
 Only the quantities that carry gradients live in Taichi fields (``needs_grad=True``): the per-Gaussian inputs,
 their projections and the per-pixel outputs. Bookkeeping (tile lists, per-pixel transmittance) lives in torch
-tensors passed to kernels as ndarrays, so its size never forces a recompile.
+tensors passed to kernels as ndarrays, so its size never forces a recompile. Tensors move in and out of the
+fields through ``tensors.load`` / ``tensors.store`` (the engine's one torch bridge).
 
 Capacities grow geometrically (powers of two), so a kernel is re-instantiated for new fields only
 O(log N) times per process. Fields of an outgrown capacity are not freed (at most about as much memory again).
@@ -110,50 +111,6 @@ def splat_fields() -> SplatFields:
     if _fields is None or _fields.config is not current():
         _fields = SplatFields()
     return _fields
-
-
-@ti.kernel
-def load_vectors(dst: ti.template(), src: ti.types.ndarray(), n: ti.i32):
-    """dst[g][d] = src[g, d] for g < n."""
-    for g in range(n):
-        for d in ti.static(range(dst.n)):
-            dst[g][d] = src[g, d]
-
-
-@ti.kernel
-def load_scalars(dst: ti.template(), src: ti.types.ndarray(), n: ti.i32):
-    """dst[i] = src[i] for i < n (src flat)."""
-    for i in range(n):
-        dst[i] = src[i]
-
-
-@ti.kernel
-def store_vector_grads(src: ti.template(), dst: ti.types.ndarray(), n: ti.i32):
-    """dst[g, d] = src.grad[g][d] for g < n."""
-    for g in range(n):
-        for d in ti.static(range(src.n)):
-            dst[g, d] = src.grad[g][d]
-
-
-@ti.kernel
-def store_scalar_grads(src: ti.template(), dst: ti.types.ndarray(), n: ti.i32):
-    """dst[i] = src.grad[i] for i < n (dst flat)."""
-    for i in range(n):
-        dst[i] = src.grad[i]
-
-
-@ti.kernel
-def store_scalars(src: ti.template(), dst: ti.types.ndarray(), n: ti.i32):
-    """dst[i] = src[i] for i < n (dst flat)."""
-    for i in range(n):
-        dst[i] = src[i]
-
-
-@ti.kernel
-def load_scalar_grads(dst: ti.template(), src: ti.types.ndarray(), n: ti.i32):
-    """dst.grad[i] = src[i] for i < n (src flat)."""
-    for i in range(n):
-        dst.grad[i] = src[i]
 
 
 @ti.kernel

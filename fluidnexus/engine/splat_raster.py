@@ -13,9 +13,13 @@ per-contributor storage, and adds into the ``.grad`` of the projected Gaussians,
 Work is split by tile, one tile per task, and inside a tile the kernels go through the tile's depth-sorted list
 once, updating only the pixels inside each Gaussian's footprint ellipse, row by row (splat order). Each pixel
 still sees its Gaussians front to back, so the result equals the per-pixel loop of 3DGS, but the work is the
-footprint area instead of the tile area per Gaussian, and the backward sums each Gaussian's gradient over a tile
-in registers before a single atomic add per (Gaussian, tile) pair. Per-pixel state lives in the pixel buffers
-(each tile's pixels are touched by one task only), so nothing per pixel needs an atomic.
+footprint area instead of the tile area per Gaussian. Per-pixel state lives in the pixel buffers (each tile's
+pixels are touched by one task only), so nothing per pixel needs an atomic.
+
+The backward is deterministic (bit-identical reruns on any thread count): each (Gaussian, tile) pair sums its
+gradient over the tile's pixels in registers and writes it to its own row of a partial-sum buffer (one row per
+tile-list entry); a second kernel then adds each Gaussian's rows in a fixed order (its tiles in the order
+``splat_bin.fill_tiles`` listed them). No float atomic adds, so the sum order never depends on scheduling.
 """
 
 import taichi as ti
@@ -130,14 +134,17 @@ def composite_forward(g: ti.template(), pix: ti.template(), bg: ti.template(), c
                 pix.alpha[p] = 1.0 - t_final[p]
 
 
+PARTIAL_XY, PARTIAL_CONIC, PARTIAL_OPACITY, PARTIAL_DEPTH, PARTIAL_COLOR = 0, 2, 5, 6, 7  # partial-sum columns
+
+
 @ti.kernel
 def composite_backward(g: ti.template(), pix: ti.template(), bg: ti.template(), channels: ti.template(),
                        with_depth: ti.template(), tile: ti.i32, width: ti.i32, height: ti.i32, tiles_x: ti.i32,
-                      n_tiles: ti.i32,
+                       n_tiles: ti.i32,
                        start: ti.types.ndarray(), lists: ti.types.ndarray(), rect: ti.types.ndarray(),
                        power_min: ti.types.ndarray(), t_final: ti.types.ndarray(), last: ti.types.ndarray(),
-                       trans: ti.types.ndarray(), behind: ti.types.ndarray()):
-    """Adjoint of :func:`composite_forward`: add dL/d(xy, conic, depth, opacity, colour) into the ``.grad``s.
+                       trans: ti.types.ndarray(), behind: ti.types.ndarray(), partial: ti.types.ndarray()):
+    """Adjoint of :func:`composite_forward`, per (Gaussian, tile): dL/d(xy, conic, opacity, depth, colour).
 
     With S_i = sum_{j>i} c_j alpha_j T_j + T_N c_bg (what lies behind contributor i):
     dC/dalpha_i = c_i T_i - S_i / (1 - alpha_i), dA/dalpha_i = T_N / (1 - alpha_i) and
@@ -148,6 +155,8 @@ def composite_backward(g: ti.template(), pix: ti.template(), bg: ti.template(), 
 
     Args:
         trans: [H * W] real scratch, T_i while walking back. behind: [H * W] real scratch, B_i.
+        partial: [entries, 7 + channels] real out: row e holds the gradient of list entry e's Gaussian from
+            the pixels of its tile (columns PARTIAL_XY.., zero for entries behind every pixel's last contributor).
     """
     ti.loop_config(block_dim=1)
     for t in range(n_tiles):
@@ -203,40 +212,78 @@ def composite_backward(g: ti.template(), pix: ti.template(), bg: ti.template(), 
                                     grad_xy += grad_power * ti.Vector([con[0] * dx + con[1] * dy,
                                                                        con[2] * dy + con[1] * dx])
                                     grad_con += grad_power * ti.Vector([-0.5 * dx * dx, -dx * dy, -0.5 * dy * dy])
-            g.xy.grad[k] += grad_xy
-            g.conic.grad[k] += grad_con
-            g.opacities.grad[k] += grad_op
-            g.depth.grad[k] += grad_z
+            for d in ti.static(range(2)):
+                partial[e, PARTIAL_XY + d] = grad_xy[d]
+            for d in ti.static(range(3)):
+                partial[e, PARTIAL_CONIC + d] = grad_con[d]
+            partial[e, PARTIAL_OPACITY] = grad_op
+            partial[e, PARTIAL_DEPTH] = grad_z
             for c in ti.static(range(channels)):
-                g.colors.grad[k * channels + c] += grad_col[c]
+                partial[e, PARTIAL_COLOR + c] = grad_col[c]
+        for e in range(tile_last + 1, start[t + 1]):  # entries no pixel reached
+            for j in ti.static(range(PARTIAL_COLOR + channels)):
+                partial[e, j] = 0.0
+
+
+@ti.kernel
+def gather_gradients(g: ti.template(), channels: ti.template(), n: ti.i32, first: ti.types.ndarray(),
+                     slots: ti.types.ndarray(), lists: ti.types.ndarray(), partial: ti.types.ndarray()):
+    """Add each Gaussian's per-tile partial sums into its ``.grad``s, in the fixed order of its tiles.
+
+    Args:
+        first: [n + 1] int32, the Gaussian of depth rank r owns slots[first[r]:first[r + 1]].
+        slots: [entries] int32, the tile-list entries of each Gaussian (see ``splat_bin.fill_tiles``).
+        lists: [entries] int32, the Gaussian of each entry. partial: see :func:`composite_backward`.
+    """
+    for r in range(n):
+        if first[r + 1] > first[r]:
+            acc = ti.Vector.zero(g.xy.dtype, PARTIAL_COLOR + channels)
+            for s in range(first[r], first[r + 1]):
+                e = slots[s]
+                for j in ti.static(range(PARTIAL_COLOR + channels)):
+                    acc[j] += partial[e, j]
+            k = lists[slots[first[r]]]
+            g.xy.grad[k] += ti.Vector([acc[PARTIAL_XY], acc[PARTIAL_XY + 1]])
+            g.conic.grad[k] += ti.Vector([acc[PARTIAL_CONIC], acc[PARTIAL_CONIC + 1], acc[PARTIAL_CONIC + 2]])
+            g.opacities.grad[k] += acc[PARTIAL_OPACITY]
+            g.depth.grad[k] += acc[PARTIAL_DEPTH]
+            for c in ti.static(range(channels)):
+                g.colors.grad[k * channels + c] += acc[PARTIAL_COLOR + c]
 
 
 _scratch_cache = {}
 
 
-def _scratch(t_final):
-    """Two [H * W] scratch buffers for the backward, reused between calls."""
-    n_pix, key = t_final.shape[0], (t_final.dtype, t_final.device)
-    trans, behind = _scratch_cache.get(key, (None, None))
-    if trans is None or trans.shape[0] < n_pix:
-        trans = torch.empty(n_pix, dtype=t_final.dtype, device=t_final.device)
-        behind = torch.empty(n_pix, dtype=t_final.dtype, device=t_final.device)
-        _scratch_cache[key] = trans, behind
-    return trans, behind
+def _scratch(t_final, entries: int, columns: int):
+    """The backward's scratch, reused between calls: trans and behind [H * W], partial [entries, columns]."""
+    key = (t_final.dtype, t_final.device, columns)
+    trans, behind, partial = _scratch_cache.get(key, (None, None, None))
+    if trans is None or trans.shape[0] < t_final.shape[0]:
+        trans = torch.empty(t_final.shape[0], dtype=t_final.dtype, device=t_final.device)
+        behind = torch.empty_like(trans)
+    if partial is None or partial.shape[0] < entries:
+        partial = torch.empty((entries, columns), dtype=t_final.dtype, device=t_final.device)
+    _scratch_cache[key] = trans, behind, partial
+    return trans, behind, partial
 
 
 @ti.ad.grad_replaced
 def rasterize(g, pix, bg, channels, with_depth, tile, width, height, tiles_x, n_tiles, start, lists, rect,
-              power_min, t_final, last):
-    """Composite the binned Gaussians into ``pix`` (see :func:`composite_forward` for the arguments)."""
+              power_min, t_final, last, n, first, slots):
+    """Composite the binned Gaussians into ``pix``.
+
+    See :func:`composite_forward` for the arguments; ``n``, ``first`` and ``slots`` (the n Gaussians' tile
+    entries, see :func:`gather_gradients`) are for the backward.
+    """
     composite_forward(g, pix, bg, channels, with_depth, tile, width, height, tiles_x, n_tiles, start, lists, rect,
                       power_min, t_final, last)
 
 
 @ti.ad.grad_for(rasterize)
 def rasterize_grad(g, pix, bg, channels, with_depth, tile, width, height, tiles_x, n_tiles, start, lists, rect,
-                   power_min, t_final, last):
+                   power_min, t_final, last, n, first, slots):
     """Hand-written adjoint of :func:`rasterize`, reading ``pix.*.grad`` and adding into ``g.*.grad``."""
-    trans, behind = _scratch(t_final)
+    trans, behind, partial = _scratch(t_final, lists.shape[0], PARTIAL_COLOR + channels)
     composite_backward(g, pix, bg, channels, with_depth, tile, width, height, tiles_x, n_tiles, start, lists, rect,
-                       power_min, t_final, last, trans, behind)
+                       power_min, t_final, last, trans, behind, partial)
+    gather_gradients(g, channels, n, first, slots, lists, partial)

@@ -1,5 +1,12 @@
-"""Copies between Taichi fields and torch tensors / numpy arrays over the active rows only."""
+"""The engine's one bridge between Taichi fields and torch tensors (simulator and renderer alike).
 
+Copies cover the first n entries of a field (its capacity may be larger): a vector field [cap] or one row of a
+[rows, cap] field holds [n, dims] tensors, a scalar field [cap] (or a row of [rows, cap]) holds n values, given
+in any shape with n elements. A field's ``.grad`` is a field too, so the same calls move gradients.
+
+Every tensor handed to a kernel is detached first: Taichi inspects the ``.grad`` of a tensor that requires grad
+(torch then warns about reading the ``.grad`` of a non-leaf, and a leaf gets a zero ``.grad`` allocated).
+"""
 import numpy as np
 import taichi as ti
 import torch
@@ -8,8 +15,13 @@ from .runtime import current
 
 
 def torch_dtype() -> torch.dtype:
-    """The torch dtype of the running Taichi precision."""
+    """The torch dtype of the running Taichi precision (float64 or float32)."""
     return torch.float64 if current().precision == "f64" else torch.float32
+
+
+def torch_device() -> torch.device:
+    """The torch device whose tensors the running Taichi arch reads in place."""
+    return torch.device("cuda" if current().arch == "cuda" else "cpu")
 
 
 def as_tensor(x, dims: int | None = None) -> torch.Tensor:
@@ -22,7 +34,7 @@ def as_tensor(x, dims: int | None = None) -> torch.Tensor:
 
 
 @ti.kernel
-def _load_vec(dst: ti.template(), row: int, src: ti.types.ndarray(), n: int):
+def _load_vec(dst: ti.template(), row: ti.i32, src: ti.types.ndarray(), n: ti.i32):
     for i in range(n):
         for d in ti.static(range(dst.n)):
             if ti.static(len(dst.shape) == 2):
@@ -32,13 +44,16 @@ def _load_vec(dst: ti.template(), row: int, src: ti.types.ndarray(), n: int):
 
 
 @ti.kernel
-def _load_scalar(dst: ti.template(), src: ti.types.ndarray(), n: int):
+def _load_scalar(dst: ti.template(), row: ti.i32, src: ti.types.ndarray(), n: ti.i32):
     for i in range(n):
-        dst[i] = src[i, 0]
+        if ti.static(len(dst.shape) == 2):
+            dst[row, i] = src[i]
+        else:
+            dst[i] = src[i]
 
 
 @ti.kernel
-def _store_vec(src: ti.template(), row: int, dst: ti.types.ndarray(), n: int):
+def _store_vec(src: ti.template(), row: ti.i32, dst: ti.types.ndarray(), n: ti.i32):
     for i in range(n):
         for d in ti.static(range(src.n)):
             if ti.static(len(src.shape) == 2):
@@ -48,34 +63,56 @@ def _store_vec(src: ti.template(), row: int, dst: ti.types.ndarray(), n: int):
 
 
 @ti.kernel
-def _store_scalar(src: ti.template(), dst: ti.types.ndarray(), n: int):
+def _store_scalar(src: ti.template(), row: ti.i32, dst: ti.types.ndarray(), n: ti.i32):
     for i in range(n):
-        dst[i, 0] = src[i]
+        if ti.static(len(src.shape) == 2):
+            dst[i] = src[row, i]
+        else:
+            dst[i] = src[i]
 
 
-def _is_vec(field) -> bool:
-    return isinstance(field, ti.MatrixField)
+def _dims(field) -> int:
+    """Components per entry: n of a vector field, 1 of a scalar field."""
+    return field.n if isinstance(field, ti.MatrixField) else 1
 
 
 def load(field, values, row: int = 0) -> None:
-    """Write ``values`` [n, dims] into the first n entries of ``field`` ([cap] or row ``row`` of [rows, cap])."""
-    t = as_tensor(values)
-    t = t.reshape(t.shape[0], -1) if t.numel() else t.reshape(t.shape[0] if t.ndim else 0, 1)
-    if t.shape[0] > field.shape[-1]:
-        raise ValueError(f"{t.shape[0]} rows exceed the capacity {field.shape[-1]}")
-    if t.shape[0]:
-        if _is_vec(field):
-            _load_vec(field, row, t, t.shape[0])
-        else:
-            _load_scalar(field, t, t.shape[0])
+    """Write ``values`` into the first n entries of ``field`` ([cap], or row ``row`` of [rows, cap]).
 
-
-def store(field, n: int, row: int = 0) -> torch.Tensor:
-    """The first n entries of ``field`` as a torch tensor [n, dims] of the running precision."""
-    out = torch.zeros((n, field.n if _is_vec(field) else 1), dtype=torch_dtype())
+    Args:
+        field: a Taichi field (or a field's ``.grad``).
+        values: numpy or torch (any device; converted to the running precision), [n, dims] for a vector field,
+            n values in any shape for a scalar field.
+    """
+    t = values.detach() if isinstance(values, torch.Tensor) else torch.as_tensor(np.asarray(values))
+    t = t.to(dtype=torch_dtype()).contiguous()
+    dims = _dims(field)
+    if dims > 1 and (t.ndim != 2 or t.shape[1] != dims):
+        raise ValueError(f"expected shape [n, {dims}], got {tuple(t.shape)}")
+    n = t.numel() // dims
+    t = t.reshape(n) if dims == 1 else t
+    if n > field.shape[-1]:
+        raise ValueError(f"{n} rows exceed the capacity {field.shape[-1]}")
     if n:
-        if _is_vec(field):
-            _store_vec(field, row, out, n)
-        else:
-            _store_scalar(field, out, n)
+        (_load_vec if dims > 1 else _load_scalar)(field, row, t, n)
+
+
+def store(field, n: int, row: int = 0, out: torch.Tensor | None = None) -> torch.Tensor:
+    """The first n entries of ``field`` as a tensor of the running precision.
+
+    Args:
+        field: a Taichi field (or a field's ``.grad``), [cap] or [rows, cap] (then row ``row``).
+        n: entries to copy.
+        out: where to write (contiguous, running precision, n * dims elements, any shape, on the CPU or the
+            engine's device); by default a new CPU tensor [n, dims] ([n] for a scalar field).
+    Returns:
+        ``out``, filled.
+    """
+    dims = _dims(field)
+    if out is None:
+        out = torch.empty((n, dims) if dims > 1 else (n,), dtype=torch_dtype())
+    if out.numel() != n * dims or not out.is_contiguous():
+        raise ValueError(f"out must be contiguous with {n * dims} elements, got {tuple(out.shape)}")
+    if n:
+        (_store_vec if dims > 1 else _store_scalar)(field, row, out.view(n, dims) if dims > 1 else out.view(n), n)
     return out

@@ -49,7 +49,8 @@ class ReconConfig:
         physical_emit_spacing, physical_emit_radius: physical emitter lattice spacing and disk radius, metres.
         init_visual_height: height of the frame-0 visual cylinder above the source, metres.
         stabilization_steps: N_stable steps before frame 0.
-        max_loss: a loss above this (or NaN) stops the run (divergence).
+        max_loss: a loss above this (or NaN) stops the run (divergence). The visual spacing term is a sum over
+            pairs and reaches thousands on a healthy 120-frame run, hence the high default.
     """
 
     frames: tuple[int, int | None] = (0, None)
@@ -90,7 +91,7 @@ class ReconConfig:
     physical_emit_radius: float = 0.09
     init_visual_height: float = 0.05
     stabilization_steps: int = 20
-    max_loss: float = 1e3
+    max_loss: float = 1e6
 
     def __post_init__(self):
         checks = {

@@ -7,6 +7,7 @@ import torch
 
 from .. import engine
 from ..engine import FieldQuery, ModelConfig, NeighborTable, PBFSimulator, SolverConfig, simulate_step
+from ..engine.tensors import torch_dtype
 
 
 class Workspace:
@@ -23,7 +24,7 @@ class Workspace:
 
     def __init__(self, physical_capacity: int, visual_capacity: int, solver: SolverConfig, model: ModelConfig):
         self.solver, self.model = solver, model
-        self.dtype = torch.float64 if engine.current().precision == "f64" else torch.float32
+        self.dtype = torch_dtype()
         self.sim = PBFSimulator(physical_capacity, solver, model)
         self.theta = torch.tensor(model.to_vector(), dtype=self.dtype)
         h = solver.h
@@ -31,6 +32,7 @@ class Workspace:
         self.density_query = FieldQuery(physical_capacity, physical_capacity, h)
         self.next_query = FieldQuery(physical_capacity, physical_capacity, h)
         self._pair_points = ti.Vector.field(3, engine.real(), shape=visual_capacity)
+        self._pair_dtype = np.float64 if self.dtype == torch.float64 else np.float32
         self._pair_table = NeighborTable(visual_capacity, width=32)
 
     @property
@@ -59,9 +61,9 @@ class Workspace:
         m = x.shape[0]
         if m < 2:
             return torch.zeros((0, 2), dtype=torch.long)
-        full = np.zeros((self._pair_points.shape[0], 3))
+        full = np.zeros((self._pair_points.shape[0], 3), dtype=self._pair_dtype)
         full[:m] = x.detach().cpu().numpy()
-        self._pair_points.from_numpy(full.astype(self._pair_points.to_numpy().dtype))
+        self._pair_points.from_numpy(full)
         self._pair_table.build(self._pair_points, m, radius)
         count = self._pair_table.count.to_numpy()[:m]
         nbr = self._pair_table.nbr.to_numpy()[:m]

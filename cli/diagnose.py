@@ -1,0 +1,48 @@
+"""``fluidnexus diagnose``: what the PBF model gets wrong on measured footage, its cause, and the gain."""
+from __future__ import annotations
+
+import click
+
+from fluidnexus.errors import InputError
+from fluidnexus.runs import open_run
+from fluidnexus.video import parse_frame_range
+
+from .options import arch_option, start_engine
+
+
+def _window(text: str, name: str) -> tuple[int, int]:
+    s = parse_frame_range(text)
+    if s.start is None or s.stop is None or s.start < 0 or s.stop <= s.start:
+        raise InputError(None, name, f"expected A:B with 0 <= A < B, got {text!r}")
+    return int(s.start), int(s.stop)
+
+
+@click.command()
+@click.argument("source", type=click.Path(exists=True, file_okay=False))
+@click.option("--out", required=True, type=click.Path(file_okay=False), help="Output folder.")
+@click.option("--train-frames", default="0:60", show_default=True, help="Training window A:B (half-open).")
+@click.option("--validate-frames", default="60:90", show_default=True, help="Validation window C:D (half-open).")
+@click.option("--height", default=48, show_default=True, type=click.IntRange(16, 512),
+              help="Observation image height [px].")
+@click.option("--spacing", default=0.02, show_default=True, type=click.FloatRange(0.005, 0.1),
+              help="Particle spacing of the simulated plume [m].")
+@click.option("--evals", default=14, show_default=True, type=click.IntRange(3, 200),
+              help="Rollouts per fit (Nelder-Mead evaluations).")
+@arch_option
+def diagnose(source, out, train_frames, validate_frames, height, spacing, evals, arch):
+    """Find what the simulation gets wrong on the measured footage of SOURCE (a scene, or a run folder whose
+    scene is used), name the cause among the candidate extensions, and measure the validation gain."""
+    from pathlib import Path
+
+    from fluidnexus.diagnose import diagnose as run_diagnose
+
+    scene_dir = Path(source)
+    if (scene_dir / "run.json").exists():
+        scene_dir = open_run(scene_dir).scene_dir
+    start_engine(arch)
+    report = run_diagnose(scene_dir, out, _window(train_frames, "--train-frames"),
+                          _window(validate_frames, "--validate-frames"), height=height, spacing=spacing,
+                          maxfev=evals)
+    g = report["finding"]["gain"]
+    click.echo(f"finding: {report['finding']['effect']} {report['finding']['params']} "
+               f"(validation image error {g['before']:.4f} -> {g['after']:.4f}); report in {out}/report.md")

@@ -1,0 +1,80 @@
+"""``fluidnexus predict``: what the smoke does next (FluidNexus Sec. 3.3, Alg. S2; docs/prediction.md)."""
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import click
+
+from fluidnexus.errors import InputError
+
+from .options import arch_option, start_engine
+
+log = logging.getLogger("fluidnexus")
+
+
+def refine_options(func):
+    """--refine, --no-refit and the CogVideoX options shared by ``predict`` and ``interact``."""
+    options = [
+        click.option("--refine", "method", type=click.Choice(["temporal", "cogvideox"]), default="temporal",
+                     show_default=True, help="Refiner of the rough future videos."),
+        click.option("--no-refit", is_flag=True, help="Stop after the physics rollout (no render/refine/re-fit)."),
+        click.option("--weights", type=click.Path(path_type=Path), help="cogvideox: local diffusers folder."),
+        click.option("--lora", type=click.Path(path_type=Path), help="cogvideox: local LoRA folder."),
+        click.option("--strength", type=float, default=0.75, show_default=True,
+                     help="cogvideox: SDEdit strength (the paper uses 0.75 for the future)."),
+        click.option("--steps", type=int, default=50, show_default=True, help="cogvideox: denoising steps."),
+        click.option("--seed", type=int, default=0, show_default=True, help="cogvideox: noise seed."),
+        click.option("--offload", is_flag=True, help="cogvideox: CPU offload of sub-models."),
+        click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto", show_default=True,
+                     help="cogvideox: torch device."),
+    ]
+    for option in reversed(options):
+        func = option(func)
+    return func
+
+
+def make_refiner(method, no_refit, weights, lora, strength, steps, seed, offload, device):
+    """The refiner chosen on the command line, or None with --no-refit."""
+    if no_refit:
+        return None
+    from fluidnexus.gen.refiner import make_refiner as build
+
+    if method == "cogvideox":
+        from fluidnexus.gen.cogvideox import DEFAULT_PROMPT, CogVideoXConfig
+
+        if not 0 < strength <= 1:
+            raise InputError(None, "--strength", f"must be in (0, 1], got {strength}")
+        config = CogVideoXConfig(strength=strength, steps=steps, prompt=DEFAULT_PROMPT, prompt_embeds=None, seed=seed,
+                                 device=None if device == "auto" else device, offload=offload)
+        return build(method, weights=weights, lora=lora, config=config)
+    return build(method)
+
+
+def check_frames(frames: int) -> None:
+    if frames <= 0:
+        raise InputError(None, "--frames", f"must be > 0, got {frames}")
+
+
+@click.command()
+@click.argument("run_dir", metavar="RUN", type=click.Path(path_type=Path))
+@click.option("--frames", type=int, required=True, help="Number of future frames N.")
+@click.option("--out", required=True, type=click.Path(path_type=Path, file_okay=False), help="New run folder.")
+@refine_options
+@arch_option
+def predict(run_dir: Path, frames: int, out: Path, method, no_refit, weights, lora, strength, steps, seed, offload,
+            device, arch) -> None:
+    """Simulate N frames after the last frame of RUN, render them from every view, refine and re-fit.
+
+    \b
+    fluidnexus predict runs/sf --frames 30 --out runs/sf-future
+    fluidnexus predict runs/sf --frames 30 --out runs/sf-physics --no-refit
+    """
+    from fluidnexus.predict.session import Interaction, simulate_future
+    from fluidnexus.runs import open_run
+
+    check_frames(frames)
+    run = open_run(run_dir)
+    refiner = make_refiner(method, no_refit, weights, lora, strength, steps, seed, offload, device)
+    start_engine(arch)
+    simulate_future(run, out, "predict", frames, Interaction(), refiner)

@@ -1,0 +1,169 @@
+"""The simulated plume of diagnose: the paper's PBF gas (buoyancy alpha, drag k) seeded by the scene's source,
+with the candidate extensions, rolled forward and rendered into the observation views.
+
+The rollout is the engine's PBF step (FluidNexus Eq. S1-S4) at a coarse particle spacing; the smoke seen in
+the images is carried by the physical particles themselves, each with brightness ``gain * exp(-rate * age)``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from fluidnexus.engine import (Buoyancy, Drag, ModelConfig, PBFSimulator, PhysicalParticles, SolverConfig,
+                               SourceDisk, Viscosity, Vorticity, prune, rest_density_for_lattice, step_particles)
+
+from .observe import splat_points
+
+#: The candidate extensions: name -> its parameters (defaults = the term switched off). See docs/diagnose.md.
+EXTENSIONS = {
+    "wind": {"velocity": (0.0, 0.0, 0.0)},   # ambient air velocity [m/s], drag v_env (Eq. S4)
+    "buoyancy_decay": {"tau": np.inf},        # e-folding time of buoyancy with particle age [s]
+    "vorticity": {"epsilon": 0.0},            # vorticity confinement strength [m/s]
+    "viscosity": {"c": 0.0},                  # XSPH viscosity coefficient
+    "dissipation": {"rate": 0.0},             # smoke fading [1/s]
+    "swirl": {"omega": 0.0},                  # inflow angular velocity about +y [rad/s]
+}
+
+
+@dataclass(frozen=True)
+class PlumeParams:
+    """Parameters of the simulated plume.
+
+    Attributes:
+        alpha: buoyancy coefficient (< 0 rises; FluidNexus Eq. S1).
+        k: drag coefficient [1/s] (Eq. S4).
+        layers: source rate: disk layers emitted per second (at most one per step); the layers leave the
+            source at the inflow speed ``layers x spacing`` m/s so that they do not pile up.
+        gain: brightness of one particle's smoke; fitted in closed form.
+        extensions: active extensions, name -> {param: value} (names and parameters of :data:`EXTENSIONS`).
+    """
+
+    alpha: float = -3.0
+    k: float = 3.0
+    layers: float = 10.0
+    gain: float = 1.0
+    extensions: dict = field(default_factory=dict)
+
+    def ext(self, name: str, key: str):
+        return self.extensions.get(name, EXTENSIONS[name])[key]
+
+    def model(self) -> ModelConfig:
+        """The engine model of these parameters (the extensions that are forces included)."""
+        tau = self.ext("buoyancy_decay", "tau")
+        terms = [Buoyancy(alpha=self.alpha, decay=0.0 if not np.isfinite(tau) else 1.0 / tau),
+                 Drag(k=self.k, v_env=tuple(float(v) for v in self.ext("wind", "velocity")))]
+        if "vorticity" in self.extensions:
+            terms.append(Vorticity(epsilon=float(self.ext("vorticity", "epsilon"))))
+        if "viscosity" in self.extensions:
+            terms.append(Viscosity(c=float(self.ext("viscosity", "c"))))
+        return ModelConfig(tuple(terms))
+
+    def with_gain(self, gain: float) -> "PlumeParams":
+        return replace(self, gain=float(gain))
+
+
+@dataclass(frozen=True)
+class PlumeSetup:
+    """What every rollout shares.
+
+    Attributes:
+        source_center: inflow disk centre [m]; source_radius: its radius [m].
+        spacing: physical particle spacing [m] (the solver's H and rho0 follow it, docs/simulator.md ratios).
+        fps: frame rate; a rollout takes one step per frame.
+        frames: number of frames rolled out (the first is the initial state).
+        lo, hi: particles leaving this box [m] are removed.
+        seed: [M, 3] particles present at the first frame (e.g. from the visual hull) [m].
+        iterations: PBF solver iterations per step.
+    """
+
+    source_center: tuple
+    source_radius: float
+    spacing: float
+    fps: float
+    frames: int
+    lo: tuple
+    hi: tuple
+    seed: np.ndarray
+    iterations: int = 4
+
+    @property
+    def solver(self) -> SolverConfig:
+        h = self.spacing / 0.45  # the release's 0.009 m lattice at H = 0.02 m
+        return SolverConfig(h=h, rest_density=rest_density_for_lattice(self.spacing, h, 1.44),
+                            iterations=self.iterations, dt=1.0 / self.fps)
+
+    @property
+    def source(self) -> SourceDisk:
+        return SourceDisk(center=tuple(self.source_center), radius=self.source_radius, spacing=self.spacing)
+
+    @property
+    def capacity(self) -> int:
+        return len(self.seed) + self.source.count * self.frames
+
+
+@dataclass
+class Rollout:
+    """Particle positions [N_t, 3] m and ages [N_t] s at each frame of a rollout."""
+
+    positions: list
+    ages: list
+
+
+class PlumeSimulator:
+    """Rolls the plume forward; keeps one engine simulator per set of active force terms."""
+
+    def __init__(self, setup: PlumeSetup):
+        self.setup = setup
+        self._sims: dict = {}
+        self._particles = PhysicalParticles(setup.capacity)
+
+    def _simulator(self, model: ModelConfig) -> PBFSimulator:
+        kinds = tuple(t.kind for t in model.terms)
+        sim = self._sims.get(kinds)
+        if sim is None:
+            sim = self._sims[kinds] = PBFSimulator(self.setup.capacity, self.setup.solver, model)
+        else:
+            sim.load_theta(model.to_vector())
+        return sim
+
+    def rollout(self, params: PlumeParams) -> Rollout:
+        """Simulate ``setup.frames`` frames (one PBF step per frame, emission before each step)."""
+        s = self.setup
+        sim = self._simulator(params.model())
+        particles = self._particles
+        particles.keep(np.zeros(particles.n, bool))
+        if len(s.seed):
+            particles.add(position=s.seed)
+        rng = np.random.default_rng(0)
+        source, omega = s.source, float(params.ext("swirl", "omega"))
+        per_step = min(max(params.layers, 0.0) / s.fps, 1.0)
+        inflow = per_step * s.fps * s.spacing
+        phase = 1.0
+        out = Rollout([particles.get("position").copy()], [particles.get("age").ravel().copy()])
+        for _ in range(1, s.frames):
+            phase += per_step
+            if phase >= 1.0:
+                phase -= 1.0
+                pts = source.sample(rng)
+                r = pts - np.asarray(s.source_center)
+                # inflow speed upwards plus angular velocity omega about +y: v = (0, omega, 0) x r
+                vel = np.stack([omega * r[:, 2], np.full(len(r), inflow), -omega * r[:, 0]], -1)
+                particles.add(position=pts, velocity=vel)
+            step_particles(sim, particles)
+            prune(particles, None, s.solver.h, s.lo, s.hi)
+            out.positions.append(particles.get("position").copy())
+            out.ages.append(particles.get("age").ravel().copy())
+        return out
+
+
+def render_rollout(rollout: Rollout, params: PlumeParams, cameras, sigma_px: float) -> np.ndarray:
+    """Images [V, T, h, w] of a rollout: each particle carries ``gain * exp(-rate * age)`` smoke."""
+    rate = float(params.ext("dissipation", "rate"))
+    T = len(rollout.positions)
+    out = np.zeros((len(cameras), T, cameras[0].height, cameras[0].width))
+    for t in range(T):
+        w = params.gain * np.exp(-rate * rollout.ages[t])
+        for v, cam in enumerate(cameras):
+            out[v, t] = splat_points(cam, rollout.positions[t], w, sigma_px)
+    return out

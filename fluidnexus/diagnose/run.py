@@ -1,0 +1,139 @@
+"""The diagnose procedure (docs/diagnose.md): load measured views, fit the base model on the training window,
+refit each candidate extension, judge on the validation window, write the report and the extended model."""
+from __future__ import annotations
+
+import logging
+import time
+from pathlib import Path
+
+import numpy as np
+
+from fluidnexus.errors import InputError
+from fluidnexus.scene import load_ground_truth, load_scene
+from fluidnexus.video import read_video
+
+from .observe import Observed, observables
+from .plume import EXTENSIONS, PlumeSetup, PlumeSimulator
+from .report import write_outputs
+from .search import Fitter, fit_base, fit_candidate, judge
+
+log = logging.getLogger("fluidnexus")
+
+DEFAULT_SOURCE = ((0.34, 0.0, -0.225), 0.09)  # ScalarFlow inflow (docs/simulator.md)
+
+
+def load_observed(scene_dir: Path, first: int, last: int, height: int) -> Observed:
+    """Every real view of the scene (input views, novel views that have footage, ground truth) as gray images
+    of ``height`` rows, frames [first, last)."""
+    scene = load_scene(scene_dir)
+    views = [(v.name, v.camera, scene.video_path(v)) for v in scene.views if v.video is not None]
+    views += [(g.name, g.camera, scene.root / g.video) for g in load_ground_truth(scene_dir)]
+    if not views:
+        raise InputError(scene_dir, "views", "diagnose needs at least one view with footage")
+    if not 0 <= first < last <= scene.frame_count:
+        raise InputError(scene_dir, "frames", f"windows {first}:{last} do not fit {scene.frame_count} frames")
+    names, cams, imgs = [], [], []
+    for name, cam, path in views:
+        w = max(8, round(cam.width * height / cam.height))
+        small = cam.resized(w, height)
+        imgs.append(read_video(path, frames=slice(first, last), size=(w, height), gray=True)[..., 0])
+        names.append(name)
+        cams.append(small)
+    return Observed(tuple(names), tuple(cams), np.asarray(imgs, np.float64), first, scene.fps)
+
+
+def visual_hull(observed: Observed, lo, hi, spacing: float, level: float = 0.15) -> np.ndarray:
+    """Lattice points [M, 3] inside every view's smoke silhouette at the first frame (intensity above
+    ``level`` x that view's peak); none when a view shows no smoke."""
+    axes = [np.arange(a + 0.5 * spacing, b, spacing) for a, b in zip(lo, hi)]
+    pts = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+    keep = np.ones(len(pts), bool)
+    for cam, img in zip(observed.cameras, observed.images[:, 0]):
+        if img.max() <= 1e-3:
+            return np.zeros((0, 3))
+        uv, depth = cam.project(pts)
+        u, v = np.floor(uv[:, 0]).astype(int), np.floor(uv[:, 1]).astype(int)
+        inside = (depth > 0) & (u >= 0) & (u < cam.width) & (v >= 0) & (v < cam.height)
+        hit = np.zeros(len(pts), bool)
+        hit[inside] = img[v[inside], u[inside]] > level * img.max()
+        keep &= hit
+    return pts[keep]
+
+
+def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, int], height: int = 48,
+             spacing: float = 0.02, maxfev: int = 14, candidates=tuple(EXTENSIONS)) -> dict:
+    """Run the whole procedure and write report.json, report.md, plots and model.json into ``out_dir``.
+
+    Args:
+        scene_dir: a scene folder (scene-format.md) with real footage.
+        out_dir: output folder (created).
+        train, validate: half-open frame windows [a, b) and [c, d) with a < b <= c < d.
+        height: observation image height [px] (width follows each camera's aspect).
+        spacing: physical particle spacing of the simulated plume [m].
+        maxfev: rollouts per fit (Nelder-Mead evaluations).
+        candidates: names of the extensions tried (default all of :data:`EXTENSIONS`).
+
+    Returns:
+        The report dict (report.json's content).
+    """
+    started = time.perf_counter()
+    scene_dir, out_dir = Path(scene_dir), Path(out_dir)
+    (a, b), (c, d) = train, validate
+    if not (a < b <= c < d):
+        raise InputError(None, "--train-frames/--validate-frames",
+                         f"need train a:b before validate c:d with a < b <= c < d, got {a}:{b} and {c}:{d}")
+    unknown = set(candidates) - set(EXTENSIONS)
+    if unknown:
+        raise InputError(None, "candidates", f"unknown extensions {sorted(unknown)}; known: {sorted(EXTENSIONS)}")
+    scene = load_scene(scene_dir)
+    observed = load_observed(scene_dir, a, d, height)
+    src = (scene.source.center, scene.source.radius) if scene.source else DEFAULT_SOURCE
+    if scene.volume:
+        lo, hi = np.asarray(scene.volume.min, float), np.asarray(scene.volume.max, float)
+    else:
+        lo = np.asarray(src[0]) - [0.3, 0.05, 0.3]
+        hi = np.asarray(src[0]) + [0.3, 0.8, 0.3]
+    seed = visual_hull(observed, lo, hi, spacing)
+    setup = PlumeSetup(tuple(src[0]), float(src[1]), spacing, observed.fps, d - a, tuple(lo - 0.1), tuple(hi + 0.1),
+                       seed)
+    sim = PlumeSimulator(setup)
+    cams = observed.cameras
+    # particle footprint: the source spacing seen from the mean camera distance
+    dist = np.mean([np.linalg.norm(cam.center - np.asarray(src[0])) for cam in cams])
+    sigma = max(0.7, float(np.mean([cam.K[0, 0] for cam in cams]) * spacing / dist))
+    tr, va = np.arange(0, b - a), np.arange(c - a, d - a)
+    fitter = Fitter(sim, observed.images, cams, sigma, tr)
+    log.info("diagnose: %d views (%s), %d frames at %dx%d, %d seeded particles", len(cams),
+             ", ".join(observed.names), d - a, cams[0].width, cams[0].height, len(seed))
+    base = fit_base(fitter, 2 * maxfev)
+    log.info("base fit: alpha %.3f k %.3f layers %.1f/s gain %.4g, train error %.4f, validation error %.4f",
+             base.params.alpha, base.params.k, base.params.layers, base.params.gain, fitter.train_error(base), base.errors[va].mean())
+    base = fit_candidate(fitter, base, None, maxfev)
+    log.info("control refit (alpha only): alpha %.4f, train error %.4f, validation error %.4f", base.params.alpha,
+             fitter.train_error(base), base.errors[va].mean())
+    obs_o = observables(observed.images, cams, observed.fps)
+    base_o = observables(base.images, cams, observed.fps)
+    drift = _drift_velocity(obs_o.centroid[tr] - base_o.centroid[tr], observed.fps)
+    fits, judged = {}, {}
+    for name in candidates:
+        fits[name] = fit_candidate(fitter, base, name, maxfev, drift)
+        judged[name] = judge(base.errors[va], fits[name].errors[va])
+        log.info("candidate %s: %s, validation error %.4f -> %.4f (gain %.1f %%, p %.2g)", name,
+                 fits[name].params.extensions[name], judged[name].before, judged[name].after,
+                 100 * judged[name].relative_gain, judged[name].p_value)
+    passing = [n for n in candidates if judged[n].passes]
+    finding = max(passing, key=lambda n: judged[n].relative_gain) if passing else "none"
+    report = write_outputs(out_dir, observed, base, fits, judged, finding, (a, b), (c, d), fitter,
+                           time.perf_counter() - started)
+    log.info("diagnose: finding %s (%d rollouts, %.0f s)", finding, fitter.evaluations,
+             time.perf_counter() - started)
+    return report
+
+
+def _drift_velocity(offsets: np.ndarray, fps: float) -> np.ndarray:
+    """Least-squares slope [3] m/s of centroid offsets [T, 3] over time (NaN rows skipped)."""
+    ok = np.isfinite(offsets).all(1)
+    if ok.sum() < 3:
+        return np.zeros(3)
+    t = np.arange(len(offsets))[ok] / fps
+    return np.polyfit(t, offsets[ok], 1)[0]

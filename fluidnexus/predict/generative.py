@@ -1,0 +1,68 @@
+"""Generative simulation (FluidNexus Sec. 3.3, Alg. S2, steps 2-4): render the physics rollout from every view
+of the scene with the constant initial appearance, refine those rough videos with a video refiner, and re-fit
+stages 1 and 2 of the reconstruction (``recon.fit``) frame by frame against the refined frames.
+
+Only the rollout's own renders are used: the real future of the input camera is never read.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Iterator
+
+import numpy as np
+import torch
+
+from ..camera import Camera
+from ..frames import render_state
+from ..progress import progress
+from ..recon.fit import Views, fit_appearance, fit_dynamics
+from ..recon.initial import emit, frame_generator
+from ..recon.smoke import Smoke
+from ..recon.workspace import Workspace
+from .rollout import RunContext, constant_appearance
+
+
+def rough_videos(states: list[Smoke], cameras: list[Camera], ctx: RunContext) -> np.ndarray:
+    """[V, T, H, W, C] float32: each rollout frame seen by each camera with the constant initial appearance."""
+    return np.stack([np.stack([render_state(constant_appearance(s, ctx.config).to_state(), cam) for s in states])
+                     for cam in cameras])
+
+
+def refine_videos(rough: np.ndarray, refiner) -> np.ndarray:
+    """The refiner applied to each view's video: [V, T, H, W, C] -> same shape."""
+    return np.stack([np.asarray(refiner.refine(video), dtype=np.float32) for video in rough])
+
+
+def refit(start: Smoke, videos: np.ndarray, cameras: list[Camera], ws: Workspace, ctx: RunContext,
+          obstacle=None) -> Iterator[Smoke]:
+    """Yield the re-fitted frames start.frame + 1 ... against ``videos`` [V, T, H, W, C] (one per camera).
+
+    Stage 1 starts every frame from Sim(u_{t-1}, p_{t-1}) of the re-fitted previous frame (with the workspace's
+    wind and obstacle); with an obstacle the look-ahead term is off (a step with an obstacle has no gradient)
+    and the fitted particles are pushed out of the body afterwards.
+    """
+    from ..engine.obstacle import PointProjector
+
+    cfg = ctx.config if obstacle is None else replace(ctx.config, lambda_next=0.0)
+    ws.sim.set_obstacle(obstacle)
+    projector = PointProjector(max(ws.advect_query.query_capacity, ws.sim.capacity)) if obstacle is not None else None
+    prev = start
+    frames = videos.shape[1]
+    with progress("re-fit", frames) as bar:
+        for k in range(frames):
+            t = prev.frame + 1
+            views = Views(tuple(cameras), torch.as_tensor(videos[:, k], dtype=ws.dtype))
+            prev = replace(prev)  # emit appends to its argument; the caller's start stays as it is
+            emit(prev, ctx.source, cfg, t)
+            dyn = fit_dynamics(prev, ws, views, cfg, frame_generator(cfg.seed, t), bar)
+            p, u, x = dyn.p, dyn.u, dyn.x
+            if obstacle is not None:
+                p = projector(obstacle, p)
+                u = (p - prev.p) / ws.dt
+                x = projector(obstacle, x)
+            smoke = Smoke(t, p, u, prev.age + ws.dt, x, prev.color, prev.scale, prev.rotation, prev.opacity)
+            smoke.keep_physical(~ws.isolated(smoke.p))
+            fit_appearance(smoke, views, cfg, frame_generator(cfg.seed, t), bar)
+            bar.advance()
+            prev = smoke
+            yield smoke

@@ -1,0 +1,120 @@
+"""Physics-only rollout from a reconstructed state (FluidNexus Alg. S2, step 1).
+
+Each future frame t repeats what the reconstruction does before its fit, without the fit: the emitter seeds
+frame t's particles, the PBF gas steps (p_t, u_t) = Sim(u_{t-1}, p_{t-1}) (with the interaction's wind term and
+obstacle if any), the visual particles are advected x_t = x_{t-1} + dt V_t(x_{t-1}) (Eq. 2) and pushed out of an
+obstacle, and physical particles left without a neighbour are deleted (as in the release).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Iterator
+
+import numpy as np
+import torch
+
+from .. import engine
+from ..engine import ModelConfig, SolverConfig, Wind
+from ..errors import InputError
+from ..recon.config import ReconConfig
+from ..recon.initial import emit, physical_source, visual_source
+from ..recon.smoke import Smoke
+from ..recon.workspace import Workspace
+from ..runs import Run
+from ..scene import Source
+
+WIND_PROFILES = {"uniform": "constant", "height": "ramp"}
+
+
+@dataclass(frozen=True)
+class RunContext:
+    """What a rollout needs from a run folder: its settings and its smoke inflow."""
+
+    config: ReconConfig
+    solver: SolverConfig
+    model: ModelConfig
+    source: Source
+
+    @classmethod
+    def of(cls, run: Run) -> "RunContext":
+        cfg = run.config
+        src = run.info.get("source") or _summary_source(run)
+        return cls(ReconConfig.from_dict(cfg["recon"], run.root / "config.json"), SolverConfig.from_dict(cfg["solver"]),
+                   ModelConfig.from_dict(cfg["model"]), Source(tuple(src["center"]), float(src["radius"])))
+
+
+def _summary_source(run: Run) -> dict:
+    import json
+
+    path = run.root / "summary.json"
+    try:
+        return json.loads(path.read_text())["source"]
+    except (OSError, ValueError, KeyError):
+        raise InputError(path, "source", "the run records no smoke source (is the reconstruction finished?)") from None
+
+
+def parse_wind(text: str) -> tuple[float, float, float]:
+    """``VX,VY,VZ`` (m/s^2) -> a finite 3-vector; InputError otherwise (NaN included)."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(np.isfinite(values)):
+        raise InputError(None, "--wind", f"expected three finite numbers VX,VY,VZ in m/s^2, got {text!r}")
+    return values
+
+
+def with_wind(model: ModelConfig, accel, profile: str, y0: float, height: float) -> ModelConfig:
+    """``model`` plus a wind term (replacing one it has): ``uniform`` everywhere, ``height`` growing linearly from
+    zero at ``y0`` to full strength ``height`` metres above (the release's clamped ramp)."""
+    if profile not in WIND_PROFILES:
+        raise InputError(None, "--profile", f"must be one of {sorted(WIND_PROFILES)}, got {profile!r}")
+    wind = Wind(accel=tuple(float(a) for a in accel), profile=WIND_PROFILES[profile], y0=float(y0),
+                height=float(height))
+    return ModelConfig(tuple(t for t in model.terms if t.kind != "wind") + (wind,))
+
+
+def workspace_for(smoke: Smoke, frames: int, ctx: RunContext, model: ModelConfig) -> Workspace:
+    """A workspace large enough for ``smoke`` plus ``frames`` frames of emission."""
+    phys = smoke.p.shape[0] + (frames + 1) * physical_source(ctx.source, ctx.config).count + 64
+    vis = smoke.x.shape[0] + (frames + 1) * visual_source(ctx.source, ctx.config).count + 64
+    return Workspace(phys, vis, ctx.solver, model)
+
+
+def physics_step(smoke: Smoke, ws: Workspace, ctx: RunContext, obstacle=None, projector=None) -> Smoke:
+    """Frame ``smoke.frame + 1`` by physics alone (``smoke`` itself is left as it is)."""
+    t = smoke.frame + 1
+    smoke = replace(smoke)  # emit appends to its argument
+    emit(smoke, ctx.source, ctx.config, t)
+    p, u = ws.simulate(smoke.p, smoke.u, smoke.age)
+    with torch.no_grad():
+        x = engine.advect(smoke.x, p, u, ws.dt, ws.advect_query)
+    if obstacle is not None:
+        x = projector(obstacle, x)
+    out = Smoke(t, p, u, smoke.age + ws.dt, x, smoke.color, smoke.scale, smoke.rotation, smoke.opacity)
+    out.keep_physical(~ws.isolated(out.p))
+    return out
+
+
+def rollout(start: Smoke, frames: int, ws: Workspace, ctx: RunContext, obstacle=None) -> Iterator[Smoke]:
+    """Yield ``frames`` future frames after ``start`` (the simulator of ``ws`` keeps ``obstacle`` set)."""
+    from ..engine.obstacle import PointProjector
+
+    if frames <= 0:
+        raise InputError(None, "--frames", f"must be > 0, got {frames}")
+    ws.sim.set_obstacle(obstacle)
+    projector = PointProjector(ws.advect_query.query_capacity) if obstacle is not None else None
+    smoke = start
+    for _ in range(frames):
+        smoke = physics_step(smoke, ws, ctx, obstacle, projector)
+        yield smoke
+
+
+def constant_appearance(smoke: Smoke, cfg: ReconConfig) -> Smoke:
+    """``smoke`` with every Gaussian at the constant initial appearance (colour, scale, opacity, no rotation)."""
+    m, dtype = smoke.x.shape[0], smoke.x.dtype
+    rot = torch.zeros((m, 4), dtype=dtype)
+    rot[:, 0] = 1.0
+    return replace(smoke, color=torch.full((m, smoke.color.shape[1]), cfg.color0, dtype=dtype),
+                   scale=torch.full((m, 3), cfg.scale0, dtype=dtype), rotation=rot,
+                   opacity=torch.full((m,), cfg.opacity0, dtype=dtype))

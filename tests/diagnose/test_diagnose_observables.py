@@ -1,0 +1,42 @@
+"""The observation model and the selection test of diagnose on cases with known answers."""
+from __future__ import annotations
+
+import numpy as np
+
+from fluidnexus.camera import Camera
+from fluidnexus.diagnose.observe import observables, splat_points, triangulate
+from fluidnexus.diagnose.search import judge
+
+
+def cameras():
+    target = np.array([0.3, 0.3, -0.2])
+    return [Camera.look_at(48, 64, 60.0, target + 1.2 * np.array([np.cos(a), 0.0, np.sin(a)]), target)
+            for a in (0.0, 1.2, 2.5)]
+
+
+def test_triangulate_recovers_a_point_seen_by_three_cameras():
+    p = np.array([0.35, 0.42, -0.18])
+    cams = cameras()
+    uv = np.array([c.project(p[None])[0][0] for c in cams])
+    np.testing.assert_allclose(triangulate(cams, uv), p, atol=1e-9)
+
+
+def test_observables_track_a_moving_blob():
+    cams, fps = cameras(), 30.0
+    rng = np.random.default_rng(0)
+    blob = rng.normal(0.0, 0.01, (400, 3))
+    centres = np.array([[0.3, 0.2 + 0.01 * t, -0.2 + 0.005 * t] for t in range(6)])
+    images = np.array([[splat_points(c, blob + centres[t], np.ones(len(blob)), 1.0) for t in range(6)]
+                       for c in cams])
+    obs = observables(images, cams, fps)
+    np.testing.assert_allclose(obs.centroid, centres + blob.mean(0), atol=4e-3)
+    np.testing.assert_allclose(obs.intensity, 400.0, rtol=0.02)  # all of the blob is in view
+    assert np.all(np.abs(obs.rise_speed[1:-1] - 0.3) < 0.1)  # front rises 1 cm per frame = 0.3 m/s
+
+
+def test_judge_passes_a_clear_gain_and_refuses_noise():
+    rng = np.random.default_rng(1)
+    before = 0.5 + 0.05 * rng.random(30)
+    assert judge(before, 0.6 * before).passes
+    assert not judge(before, before).passes
+    assert not judge(before, before * (1 + 0.05 * rng.normal(size=30))).passes
