@@ -90,11 +90,12 @@ def divergence(run: Run, frames: list[int], grid: int = DIVERGENCE_GRID) -> dict
     res = np.maximum(3, np.round(grid * (hi - lo) / (hi - lo).max()).astype(int))
     h = run.config["solver"]["h"]
     all_nodes, in_smoke = [], []
-    for t in frames:
-        state = run.state(t)
-        query = engine.FieldQuery(max(1, state.num_physical), int(np.prod(res)), h)
+    states = [run.state(t) for t in frames]
+    nodes = int(np.prod(res))  # one pair of queries for all frames: Taichi field allocation is slow
+    query = engine.FieldQuery(max(1, max(s.num_physical for s in states)), nodes, h)
+    vis = engine.FieldQuery(max(1, max(s.num_visual for s in states)), nodes, h)
+    for state in states:
         div, _ = engine.divergence_on_grid(query, state.physical_positions, state.physical_velocities, lo, hi, res)
-        vis = engine.FieldQuery(max(1, state.num_visual), int(np.prod(res)), h)
         _, near_smoke = engine.divergence_on_grid(vis, state.visual_positions, np.zeros_like(state.visual_positions),
                                                   lo, hi, res)
         all_nodes.append(np.abs(div).mean())
