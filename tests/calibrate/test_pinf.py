@@ -3,9 +3,8 @@ import json
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from cli.main import main
+from clirun import ok
 from fluidnexus.calibrate.pinf import pinf_dict, read_pinf
 from fluidnexus.samples import sample_path
 from fluidnexus.scene import load_ground_truth, load_scene
@@ -14,16 +13,11 @@ from fluidnexus.video import read_video
 OTHERS = "train00,train01,train03,train04"
 
 
-def run(*args):
-    result = CliRunner().invoke(main, [str(a) for a in args])
-    assert result.exit_code == 0, result.output + repr(result.exception)
-    return result
-
 
 @pytest.fixture(scope="module")
 def sample_scene(tmp_path_factory):
     out = tmp_path_factory.mktemp("scenes") / "single"
-    run("calibrate", "--sample", "scalarflow", "--protocol", "single-view", "--out", out)
+    ok("calibrate", "--sample", "scalarflow", "--protocol", "single-view", "--out", out)
     return out
 
 
@@ -40,7 +34,7 @@ def test_single_view_protocol(sample_scene):
 
 
 def test_four_view_protocol(tmp_path):
-    run("calibrate", "--sample", "scalarflow", "--protocol", "four-view", "--out", tmp_path / "s")
+    ok("calibrate", "--sample", "scalarflow", "--protocol", "four-view", "--out", tmp_path / "s")
     scene = load_scene(tmp_path / "s")
     assert [v.name for v in scene.with_role("input")] == OTHERS.split(",")
     assert not scene.with_role("novel")
@@ -76,7 +70,7 @@ def test_round_trip_pinf_scene_pinf(tmp_path):
     """Four-view protocol keeps the file's own train/test split, so the round trip must give the file back."""
     info = sample_path("scalarflow") / "info.json"
     out = tmp_path / "s"
-    run("calibrate", "--from-pinf", info, "--input", OTHERS, "--ground-truth", "train02", "--out", out,
+    ok("calibrate", "--from-pinf", info, "--input", OTHERS, "--ground-truth", "train02", "--out", out,
         "--to-pinf", out / "info.json")
     original = json.loads(info.read_text())
     back = json.loads((out / "info.json").read_text())
@@ -116,7 +110,7 @@ def test_pinf_dict_without_import_metadata_builds_a_voxel_box(sample_scene):
 def test_shared_capture_exact_commands(tmp_path, shared_scalarflow, protocol_args):
     """The issue's two commands on the real full-resolution capture, with README conventions."""
     out = tmp_path / "scene"
-    run("calibrate", "--from-pinf", shared_scalarflow / "info.json", *protocol_args, "--out", out, "--link")
+    ok("calibrate", "--from-pinf", shared_scalarflow / "info.json", *protocol_args, "--out", out, "--link")
     scene = load_scene(out)
     cams = {v.name: v.camera for v in scene.views}
     cams.update({g.name: g.camera for g in load_ground_truth(out)})

@@ -5,19 +5,8 @@ import json
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from cli.main import main
-
-
-def invoke(*args):
-    return CliRunner().invoke(main, [str(a) for a in args])
-
-
-def ok(*args):
-    result = invoke(*args)
-    assert result.exit_code == 0, result.output + repr(result.exception)
-    return result
+from clirun import invoke, ok  # noqa: F401  (re-exported to the tests of this folder)
 
 
 @pytest.fixture(scope="session")

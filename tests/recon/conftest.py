@@ -2,22 +2,11 @@
 from __future__ import annotations
 
 import pytest
-from click.testing import CliRunner
 
-from cli.main import main
+from clirun import invoke, ok  # noqa: F401  (re-exported to the tests of this folder)
 
 TINY = ["--frames", "0:3", "--resolution", "0.25", "--init-iters", "4", "--dynamics-iters", "2",
         "--appearance-iters", "2", "--stabilization-steps", "2", "--arch", "cpu"]
-
-
-def invoke(*args):
-    return CliRunner().invoke(main, [str(a) for a in args])
-
-
-def ok(*args):
-    result = invoke(*args)
-    assert result.exit_code == 0, result.output + repr(result.exception)
-    return result
 
 
 @pytest.fixture(scope="session")
