@@ -1,12 +1,14 @@
 """Future prediction on the ScalarFlow sample (issue protocol; docs/prediction.md).
 
-Reconstruct frames A:90 of a calibrated sample scene (or reuse --run), predict 90:120 with the physics alone
-(--no-refit) and with the render / refine / re-fit loop, and score both at the run's resolution (the sample's
-270 x 480) against the real future: the input view(s), the ground-truth novel view(s), and the same-run reference of
-repeating the last observed input frame.
+Reconstruct frames A:90 of a calibrated sample scene (or reuse --run: any reconstruction that contains frame 89,
+e.g. the 120-frame run of the recon benchmark; frame 89 of a run depends on frames 0-89 only), predict 90:120 after
+frame 89 and score at the run's resolution (the sample's 270 x 480) against the real future: the input view(s), the
+ground-truth novel view(s), and the same-run reference of repeating the last observed input frame. Variants: the
+physics alone with the paper's constants (--no-refit --no-calibrate), the physics with the backtest-calibrated model
+(--no-refit), and the default render / refine / re-fit loop.
 
     python benchmarks/bench_predict.py --protocol four-view --work /tmp/bp --first 0
-    python benchmarks/bench_predict.py --run /tmp/bp/run --work /tmp/bp   # reuse a reconstruction
+    python benchmarks/bench_predict.py --run RUN --work /tmp/bp   # reuse a reconstruction
 """
 from __future__ import annotations
 
@@ -30,7 +32,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--protocol", choices=["four-view", "single-view"], default="four-view")
     ap.add_argument("--work", type=Path, required=True, help="Folder for the scene, runs and scores.")
-    ap.add_argument("--run", type=Path, help="An existing reconstruction ending at frame 89 (skips recon).")
+    ap.add_argument("--run", type=Path, help="An existing reconstruction containing frame 89 (skips recon).")
     ap.add_argument("--first", type=int, default=0, help="First reconstructed frame (the protocol: 0).")
     ap.add_argument("--frames", type=int, default=30, help="Predicted frames (the protocol: 30, 90-119).")
     ap.add_argument("--skip-refit", action="store_true", help="Only the physics rollout.")
@@ -48,10 +50,12 @@ def main() -> None:
         timing["recon_s"] = cli("recon", scene, "--out", run, "--frames", f"{args.first}:90",
                                 *args.recon_args.split())
     results = {"run": str(run), "protocol": args.protocol}
-    variants = [("physics", ["--no-refit"])] + ([] if args.skip_refit else [("refit", ["--refine", "temporal"])])
+    variants = [("physics_paper_model", ["--no-refit", "--no-calibrate"]), ("physics", ["--no-refit"])]
+    if not args.skip_refit:
+        variants.append(("refit", ["--refine", "temporal"]))
     for name, extra in variants:
         out = work / f"predict_{name}"
-        timing[f"{name}_s"] = cli("predict", run, "--frames", args.frames, "--out", out, *extra)
+        timing[f"{name}_s"] = cli("predict", run, "--from", 89, "--frames", args.frames, "--out", out, *extra)
         cli("eval", out, "--json", work / f"scores_{name}.json")
         scores = json.loads((work / f"scores_{name}.json").read_text())["prediction"]
         results[name] = {"input_view_psnr": scores["input_view"]["psnr"],

@@ -9,7 +9,7 @@ import click
 from fluidnexus.errors import InputError
 
 from .options import arch_option, start_engine
-from .predict import check_frames, make_refiner, refine_options
+from .predict import check_frames, future_context, make_refiner, model_options, refine_options
 
 log = logging.getLogger("fluidnexus")
 
@@ -29,10 +29,11 @@ log = logging.getLogger("fluidnexus")
               help="Start after this reconstructed frame (default: the run's last frame).")
 @click.option("--frames", type=int, required=True, help="Number of future frames N.")
 @click.option("--out", required=True, type=click.Path(path_type=Path, file_okay=False), help="New run folder.")
+@model_options
 @refine_options
 @arch_option
-def interact(run_dir: Path, wind, profile, wind_height, ball, mesh_file, from_frame, frames, out, method, no_refit,
-             weights, lora, strength, steps, seed, offload, device, arch) -> None:
+def interact(run_dir: Path, wind, profile, wind_height, ball, mesh_file, from_frame, frames, out, model_file, calibrate,
+             calibrate_window, method, no_refit, weights, lora, strength, steps, seed, offload, device, arch) -> None:
     """Simulate N frames of RUN with a wind force and/or a rigid obstacle, then render, refine and re-fit.
 
     Writes OUT/videos/compare_<view>.mp4: without | with the interaction, from the input camera and a novel one.
@@ -42,12 +43,14 @@ def interact(run_dir: Path, wind, profile, wind_height, ball, mesh_file, from_fr
     fluidnexus interact runs/sf --ball 0.33,0.25,-0.25,0.05 --frames 30 --out runs/sf-ball
     fluidnexus interact runs/sf --mesh bunny.obj --frames 30 --out runs/sf-bunny --no-refit
     """
-    from fluidnexus.predict.rollout import RunContext, parse_wind, with_wind
+    from fluidnexus.predict.rollout import parse_wind, with_wind
     from fluidnexus.predict.obstacle import parse_ball
-    from fluidnexus.predict.session import Interaction, comparison_videos, physics_baseline, simulate_future
+    from fluidnexus.predict.session import (Interaction, check_new_run, comparison_videos, physics_baseline,
+                                            simulate_future)
     from fluidnexus.runs import open_run
 
     check_frames(frames)
+    check_new_run(out)
     if wind is None and ball is None and mesh_file is None:
         raise InputError(None, "--wind/--ball/--mesh", "give at least one interaction")
     if ball is not None and mesh_file is not None:
@@ -60,7 +63,7 @@ def interact(run_dir: Path, wind, profile, wind_height, ball, mesh_file, from_fr
     run = open_run(run_dir)
     refiner = make_refiner(method, no_refit, weights, lora, strength, steps, seed, offload, device)
     start_engine(arch)
-    ctx = RunContext.of(run)
+    ctx, notes = future_context(run, from_frame, model_file, calibrate, calibrate_window)
     info, model = {}, None
     if accel is not None:
         scene = run.scene(check_videos=False)
@@ -72,7 +75,8 @@ def interact(run_dir: Path, wind, profile, wind_height, ball, mesh_file, from_fr
         from fluidnexus.predict.obstacle import make_obstacle
 
         obstacle, info["obstacle"] = make_obstacle(ball, mesh_file)
-    _, with_ = simulate_future(run, out, "interact", frames, Interaction(model, obstacle, info), refiner, from_frame)
-    without = physics_baseline(run, frames, from_frame)
+    _, with_ = simulate_future(run, out, "interact", frames, Interaction(model, obstacle, info), refiner, from_frame,
+                               ctx, notes)
+    without = physics_baseline(run, frames, from_frame, ctx)
     for path in comparison_videos(run, out, without, with_, obstacle):
         log.info("wrote %s", path)

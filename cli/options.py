@@ -23,3 +23,16 @@ def start_engine(arch: str) -> str:
     except RuntimeError as err:  # e.g. --arch cuda on a machine without a usable GPU
         raise InputError(None, "--arch", f"cannot start the engine on {resolved}: {err}") from None
     return resolved
+
+
+def load_model_file(path):
+    """The engine model of a model.json (``fluidnexus diagnose`` writes one), or None without a path."""
+    if path is None:
+        return None
+    from fluidnexus.atomic import read_json
+    from fluidnexus.engine import ModelConfig
+
+    try:
+        return ModelConfig.from_dict(read_json(path, "model file").get("model", {}))
+    except (OSError, ValueError, TypeError, KeyError) as err:
+        raise InputError(path, "model", str(err)) from None

@@ -1,6 +1,7 @@
 """``fluidnexus predict``: what the smoke does next (FluidNexus Sec. 3.3, Alg. S2; docs/prediction.md)."""
 from __future__ import annotations
 
+import dataclasses
 import logging
 from pathlib import Path
 
@@ -8,7 +9,7 @@ import click
 
 from fluidnexus.errors import InputError
 
-from .options import arch_option, start_engine
+from .options import arch_option, load_model_file, start_engine
 
 log = logging.getLogger("fluidnexus")
 
@@ -51,6 +52,40 @@ def make_refiner(method, no_refit, weights, lora, strength, steps, seed, offload
     return build(method)
 
 
+def model_options(func):
+    """--model and --calibrate, shared by ``predict`` and ``interact``: the future's base model."""
+    options = [
+        click.option("--model", "model_file", type=click.Path(path_type=Path, dir_okay=False),
+                     help="A model.json (e.g. from `fluidnexus diagnose`) instead of the run's model."),
+        click.option("--calibrate/--no-calibrate", default=True, show_default=True,
+                     help="Choose buoyancy and drag by backtesting on the last reconstructed frames."),
+        click.option("--calibrate-window", type=click.IntRange(min=1), default=30, show_default=True,
+                     help="Frames of the backtest."),
+    ]
+    for option in reversed(options):
+        func = option(func)
+    return func
+
+
+def future_context(run, first, model_file, calibrate: bool, window: int):
+    """(RunContext with the future's base model, run.json notes): --model, then the backtest calibration."""
+    from fluidnexus.predict.calibrate import calibrate as backtest
+    from fluidnexus.predict.rollout import RunContext
+    from fluidnexus.predict.session import start_frame
+
+    ctx = RunContext.of(run)
+    model = load_model_file(model_file)
+    notes = {"model_file": None if model_file is None else str(Path(model_file).resolve()), "calibration": None}
+    if model is not None:
+        ctx = dataclasses.replace(ctx, model=model)
+    if calibrate:
+        result = backtest(run, ctx, start_frame(run, first), window)
+        if result is not None:
+            ctx = dataclasses.replace(ctx, model=result.model)
+            notes["calibration"] = result.to_dict()
+    return ctx, notes
+
+
 def check_frames(frames: int) -> None:
     if frames <= 0:
         raise InputError(None, "--frames", f"must be > 0, got {frames}")
@@ -60,21 +95,27 @@ def check_frames(frames: int) -> None:
 @click.argument("run_dir", metavar="RUN", type=click.Path(path_type=Path))
 @click.option("--frames", type=int, required=True, help="Number of future frames N.")
 @click.option("--out", required=True, type=click.Path(path_type=Path, file_okay=False), help="New run folder.")
+@click.option("--from", "from_frame", type=int, default=None,
+              help="Start after this reconstructed frame (default: the run's last frame).")
+@model_options
 @refine_options
 @arch_option
-def predict(run_dir: Path, frames: int, out: Path, method, no_refit, weights, lora, strength, steps, seed, offload,
-            device, arch) -> None:
+def predict(run_dir: Path, frames: int, out: Path, from_frame, model_file, calibrate, calibrate_window, method,
+            no_refit, weights, lora, strength, steps, seed, offload, device, arch) -> None:
     """Simulate N frames after the last frame of RUN, render them from every view, refine and re-fit.
 
     \b
     fluidnexus predict runs/sf --frames 30 --out runs/sf-future
     fluidnexus predict runs/sf --frames 30 --out runs/sf-physics --no-refit
+    fluidnexus predict runs/sf --from 89 --frames 30 --out runs/sf-check --model diag/model.json
     """
-    from fluidnexus.predict.session import Interaction, simulate_future
+    from fluidnexus.predict.session import Interaction, check_new_run, simulate_future
     from fluidnexus.runs import open_run
 
     check_frames(frames)
+    check_new_run(out)
     run = open_run(run_dir)
     refiner = make_refiner(method, no_refit, weights, lora, strength, steps, seed, offload, device)
     start_engine(arch)
-    simulate_future(run, out, "predict", frames, Interaction(), refiner)
+    ctx, notes = future_context(run, from_frame, model_file, calibrate, calibrate_window)
+    simulate_future(run, out, "predict", frames, Interaction(), refiner, from_frame, ctx, notes)

@@ -12,7 +12,7 @@ from fluidnexus.errors import InputError
 from fluidnexus.scene import load_scene
 from fluidnexus.video import parse_frame_range
 
-from .options import arch_option, start_engine
+from .options import arch_option, load_model_file, start_engine
 
 log = logging.getLogger("fluidnexus")
 SPECIAL = {"frames", "channels", "resolution"}
@@ -65,7 +65,6 @@ def load_overrides(path: Path | None) -> dict:
 def recon(scene_dir: Path, out: Path, frames_text, resolution, channels, config_file, model_file, resume, arch,
           **settings) -> None:
     """Reconstruct physical and visual particles of SCENE_DIR frame by frame (FluidNexus Alg. S1)."""
-    from fluidnexus.engine import ModelConfig
     from fluidnexus.recon.config import ReconConfig
     from fluidnexus.recon.run import default_setup, reconstruct
 
@@ -78,12 +77,7 @@ def recon(scene_dir: Path, out: Path, frames_text, resolution, channels, config_
     values["resolution"] = resolve_resolution(resolution, scene)
     values["channels"] = 1 if channels == "gray" else 3
     cfg = ReconConfig.from_dict(values, config_file)
-    model = None
-    if model_file is not None:
-        try:
-            model = ModelConfig.from_dict(read_json(model_file, "model file").get("model", {}))
-        except (OSError, ValueError) as err:
-            raise InputError(model_file, "model", str(err)) from None
+    model = load_model_file(model_file)
     start_engine(arch)
     summary = reconstruct(scene, out, default_setup(scene, cfg, model), resume=resume)
     log.info("reconstructed frames %d:%d into %s (%.1f s per frame)", *summary["frames"], out,

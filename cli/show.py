@@ -114,10 +114,25 @@ def evaluate(run_dir: Path, json_file: Path | None, lpips_weights: Path | None, 
     for name, s in nv["per_view"].items():
         click.echo(f"  {name:10s} PSNR {s['psnr']:.2f} dB  SSIM {s['ssim']:.4f}"
                    + (f"  LPIPS {s['lpips']:.4f}" if s["lpips"] is not None else ""))
-    click.echo(f"novel views    PSNR {nv['psnr']:.2f} dB  SSIM {nv['ssim']:.4f}")
-    click.echo(f"re-simulation  PSNR {rs['psnr']:.2f} dB  SSIM {rs['ssim']:.4f}")
+    _line("novel views", nv)
+    _line("re-simulation", rs)
     in_smoke = dv["mean_abs_in_smoke"]
     click.echo(f"divergence     mean |div V| {dv['mean_abs']:.4g} 1/s"
                + (f", in smoke {in_smoke:.4g} 1/s" if in_smoke is not None else ""))
+    pred = result.get("prediction")
+    if pred is not None:
+        click.echo(f"prediction after frame {pred['start_frame']}, frames {pred['frames'][0]}:{pred['frames'][1]}")
+        _line("  input views", pred["input_view"])
+        _line("  repeat last", pred["repeat_last_input_view"])
+        _line("  novel views", pred["novel_views"])
     if json_file is not None:
         log.info("scores: %s", json_file)
+
+
+def _line(label: str, scores: dict) -> None:
+    """One line of mean scores (a score that could not be computed, e.g. no view, shows as -)."""
+    def fmt(v, digits):
+        return "-" if v is None else f"{v:.{digits}f}"
+
+    click.echo(f"{label:15s}PSNR {fmt(scores['psnr'], 2)} dB  SSIM {fmt(scores['ssim'], 4)}"
+               + (f"  LPIPS {scores['lpips']:.4f}" if scores.get("lpips") is not None else ""))

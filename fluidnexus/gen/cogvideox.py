@@ -145,6 +145,7 @@ class CogVideoXRefiner(VideoRefiner):
     """The ``cogvideox`` backend (module docstring)."""
 
     name = "cogvideox"
+    generative = True
 
     def __init__(self, weights: str | Path | None = None, lora: str | Path | None = None,
                  config: CogVideoXConfig = CogVideoXConfig()):

@@ -23,6 +23,10 @@ class VideoRefiner(abc.ABC):
     """Makes a rough video temporally coherent."""
 
     name: str = ""
+    # True for a learned model that turns a rough render into realistic smoke (the paper's CogVideoX): prediction
+    # then renders its rough videos with the constant initial appearance, as the paper does; a non-learned
+    # refiner keeps the content it is given, so prediction renders with the reconstructed appearance instead.
+    generative: bool = False
 
     @abc.abstractmethod
     def refine(self, video: np.ndarray) -> np.ndarray:

@@ -1,5 +1,6 @@
 """Generative simulation (FluidNexus Sec. 3.3, Alg. S2, steps 2-4): render the physics rollout from every view
-of the scene with the constant initial appearance, refine those rough videos with a video refiner, and re-fit
+of the scene (with the constant initial appearance for a generative refiner, as the paper does; with the carried
+appearance for a non-learned one), refine those rough videos with a video refiner, and re-fit
 stages 1 and 2 of the reconstruction (``recon.fit``) frame by frame against the refined frames.
 
 Only the rollout's own renders are used: the real future of the input camera is never read.
@@ -22,10 +23,13 @@ from ..recon.workspace import Workspace
 from .rollout import RunContext, constant_appearance
 
 
-def rough_videos(states: list[Smoke], cameras: list[Camera], ctx: RunContext) -> np.ndarray:
-    """[V, T, H, W, C] float32: each rollout frame seen by each camera with the constant initial appearance."""
-    return np.stack([np.stack([render_state(constant_appearance(s, ctx.config).to_state(), cam) for s in states])
-                     for cam in cameras])
+def rough_videos(states: list[Smoke], cameras: list[Camera], ctx: RunContext, constant: bool) -> np.ndarray:
+    """[V, T, H, W, C] float32: each rollout frame seen by each camera, with the constant initial appearance
+    (``constant``, for a generative refiner) or with the appearance the rollout carries."""
+    def look(s: Smoke) -> Smoke:
+        return constant_appearance(s, ctx.config) if constant else s
+
+    return np.stack([np.stack([render_state(look(s).to_state(), cam) for s in states]) for cam in cameras])
 
 
 def refine_videos(rough: np.ndarray, refiner) -> np.ndarray:

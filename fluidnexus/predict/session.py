@@ -50,9 +50,14 @@ def start_frame(run: Run, frame: int | None) -> int:
     return frame
 
 
-def prepare(out: Path, run: Run, kind: str, first: int, frames: int, ctx: RunContext, model, info: dict) -> None:
+def check_new_run(out: Path) -> None:
+    """The new run folder must not exist or be empty."""
     if out.exists() and any(out.iterdir()):
         raise InputError(out, None, "already exists and is not empty (choose another --out)")
+
+
+def prepare(out: Path, run: Run, kind: str, first: int, frames: int, ctx: RunContext, model, info: dict) -> None:
+    check_new_run(out)
     (out / "frames").mkdir(parents=True, exist_ok=True)
     write_json(out / "run.json", {"format": RUN_FORMAT, "kind": kind, "scene": run.info["scene"],
                                   "frames": [first + 1, first + 1 + frames], "parent": str(run.root.resolve()),
@@ -76,7 +81,8 @@ def scene_cameras(run: Run) -> list[tuple[str, Camera]]:
 
 
 def simulate_future(run: Run, out: Path, kind: str, frames: int, interaction: Interaction, refiner=None,
-                    first: int | None = None) -> tuple[list[Smoke], list[Smoke]]:
+                    first: int | None = None, ctx: RunContext | None = None,
+                    notes: dict | None = None) -> tuple[list[Smoke], list[Smoke]]:
     """Write the future of ``run`` into the run folder ``out``; return (physics rollout, saved frames).
 
     Args:
@@ -87,13 +93,16 @@ def simulate_future(run: Run, out: Path, kind: str, frames: int, interaction: In
         interaction: wind model / obstacle (empty for a plain prediction).
         refiner: a ``fluidnexus.gen`` video refiner, or None for the physics rollout only (--no-refit).
         first: the frame to start after (default the run's last).
+        ctx: the run's settings with the future's base model (default ``RunContext.of(run)``).
+        notes: more entries for run.json (e.g. the model calibration).
     """
     if frames <= 0:
         raise InputError(None, "--frames", f"must be > 0, got {frames}")
     first = start_frame(run, first)
-    ctx = RunContext.of(run)
+    ctx = ctx or RunContext.of(run)
     model = interaction.model or ctx.model
-    info = {"interaction": interaction.info, "refine": None if refiner is None else refiner.provenance()}
+    info = {"interaction": interaction.info, "refine": None if refiner is None else refiner.provenance(),
+            **(notes or {})}
     prepare(out, run, kind, first, frames, ctx, model, info)
     tic = time.perf_counter()
     start = Smoke.from_state(run.state(first), torch_dtype())
@@ -102,7 +111,7 @@ def simulate_future(run: Run, out: Path, kind: str, frames: int, interaction: In
     saved = physics
     if refiner is not None:
         cams = scene_cameras(run)
-        rough = rough_videos(physics, [c for _, c in cams], ctx)
+        rough = rough_videos(physics, [c for _, c in cams], ctx, constant=refiner.generative)
         refined = refine_videos(rough, refiner)
         fps = 1.0 / ctx.solver.dt
         for (name, _), r, f in zip(cams, rough, refined):
@@ -140,11 +149,10 @@ def comparison_videos(run: Run, out: Path, without: list[Smoke], with_: list[Smo
     return written
 
 
-
-
-def physics_baseline(run: Run, frames: int, first: int | None = None) -> list[Smoke]:
-    """The physics rollout of the run's own model without any interaction (the "without" side)."""
+def physics_baseline(run: Run, frames: int, first: int | None = None,
+                     ctx: RunContext | None = None) -> list[Smoke]:
+    """The physics rollout of the base model without any interaction (the "without" side)."""
     first = start_frame(run, first)
-    ctx = RunContext.of(run)
+    ctx = ctx or RunContext.of(run)
     start = Smoke.from_state(run.state(first), torch_dtype())
     return list(rollout(start, frames, workspace_for(start, frames, ctx, ctx.model), ctx))
