@@ -20,7 +20,7 @@ from ..recon.fit import Views, fit_appearance, fit_dynamics
 from ..recon.initial import emit, frame_generator
 from ..recon.smoke import Smoke
 from ..recon.workspace import Workspace
-from .rollout import RunContext, constant_appearance
+from .rollout import RunContext, constant_appearance, inflow_look
 
 
 def rough_videos(states: list[Smoke], cameras: list[Camera], ctx: RunContext, constant: bool) -> np.ndarray:
@@ -50,14 +50,14 @@ def refit(start: Smoke, videos: np.ndarray, cameras: list[Camera], ws: Workspace
     cfg = ctx.config if obstacle is None else replace(ctx.config, lambda_next=0.0)
     ws.sim.set_obstacle(obstacle)
     projector = PointProjector(max(ws.advect_query.query_capacity, ws.sim.capacity)) if obstacle is not None else None
-    prev = start
+    prev, look = start, inflow_look(start, ctx)
     frames = videos.shape[1]
     with progress("re-fit", frames) as bar:
         for k in range(frames):
             t = prev.frame + 1
             views = Views(tuple(cameras), torch.as_tensor(videos[:, k], dtype=ws.dtype))
             prev = replace(prev)  # emit appends to its argument; the caller's start stays as it is
-            emit(prev, ctx.source, cfg, t)
+            emit(prev, ctx.source, cfg, t, look)
             dyn = fit_dynamics(prev, ws, views, cfg, frame_generator(cfg.seed, t), bar)
             p, u, x = dyn.p, dyn.u, dyn.x
             if obstacle is not None:

@@ -1,7 +1,7 @@
 """Physics-only rollout from a reconstructed state (FluidNexus Alg. S2, step 1).
 
 Each future frame t repeats what the reconstruction does before its fit, without the fit: the emitter seeds
-frame t's particles, the PBF gas steps (p_t, u_t) = Sim(u_{t-1}, p_{t-1}) (with the interaction's wind term and
+frame t's particles (the new Gaussians look like the recently emitted ones of the reconstruction, ``inflow_look``), the PBF gas steps (p_t, u_t) = Sim(u_{t-1}, p_{t-1}) (with the interaction's wind term and
 obstacle if any), the visual particles are advected x_t = x_{t-1} + dt V_t(x_{t-1}) (Eq. 2) and pushed out of an
 obstacle, and physical particles left without a neighbour are deleted (as in the release).
 """
@@ -81,11 +81,28 @@ def workspace_for(smoke: Smoke, frames: int, ctx: RunContext, model: ModelConfig
     return Workspace(phys, vis, ctx.solver, model)
 
 
-def physics_step(smoke: Smoke, ws: Workspace, ctx: RunContext, obstacle=None, projector=None) -> Smoke:
-    """Frame ``smoke.frame + 1`` by physics alone (``smoke`` itself is left as it is)."""
+INFLOW_FRAMES = 30
+
+
+def inflow_look(smoke: Smoke, ctx: RunContext, frames: int = INFLOW_FRAMES) -> tuple:
+    """(colour [C], scale, opacity) of the future's new Gaussians: the median appearance the reconstruction gave the
+    Gaussians its emitter seeded in the last ``frames`` frames (rows are appended in order, a fixed number per
+    frame). The fit turns most of them nearly transparent (ScalarFlow: median opacity 0.004 against the initial
+    0.1), so new smoke in the future looks like the inflow the footage showed, not like the constant initial look."""
+    rows = min(smoke.x.shape[0], frames * visual_source(ctx.source, ctx.config).count)
+    if rows == 0:
+        return ctx.config.color0, ctx.config.scale0, ctx.config.opacity0
+    recent = slice(smoke.x.shape[0] - rows, None)
+    return (smoke.color[recent].median(dim=0).values, float(smoke.scale[recent].mean(dim=1).median()),
+            float(smoke.opacity[recent].median()))
+
+
+def physics_step(smoke: Smoke, ws: Workspace, ctx: RunContext, obstacle=None, projector=None, look=None) -> Smoke:
+    """Frame ``smoke.frame + 1`` by physics alone (``smoke`` itself is left as it is); new Gaussians get ``look``
+    (default: the constant initial appearance)."""
     t = smoke.frame + 1
     smoke = replace(smoke)  # emit appends to its argument
-    emit(smoke, ctx.source, ctx.config, t)
+    emit(smoke, ctx.source, ctx.config, t, look)
     p, u = ws.simulate(smoke.p, smoke.u, smoke.age)
     with torch.no_grad():
         x = engine.advect(smoke.x, p, u, ws.dt, ws.advect_query)
@@ -104,9 +121,9 @@ def rollout(start: Smoke, frames: int, ws: Workspace, ctx: RunContext, obstacle=
         raise InputError(None, "--frames", f"must be > 0, got {frames}")
     ws.sim.set_obstacle(obstacle)
     projector = PointProjector(ws.advect_query.query_capacity) if obstacle is not None else None
-    smoke = start
+    smoke, look = start, inflow_look(start, ctx)
     for _ in range(frames):
-        smoke = physics_step(smoke, ws, ctx, obstacle, projector)
+        smoke = physics_step(smoke, ws, ctx, obstacle, projector, look)
         yield smoke
 
 

@@ -67,8 +67,13 @@ def initial_visual(source: Source, hull_points: np.ndarray, cfg: ReconConfig, mi
     return cylinder_lattice((cx, cz), cfg.init_visual_radius, cy, cy + cfg.init_visual_height, cfg.visual_spacing)
 
 
-def emit(smoke: Smoke, source: Source, cfg: ReconConfig, frame: int) -> None:
-    """Seed one frame's new physical and visual particles at the source."""
+def emit(smoke: Smoke, source: Source, cfg: ReconConfig, frame: int, look=None) -> None:
+    """Seed one frame's new physical and visual particles at the source.
+
+    ``look`` (colour [C] or a float, scale, opacity) is the new Gaussians' appearance; default the constant initial
+    appearance of ``cfg``.
+    """
     rng = frame_rng(cfg.seed, frame)
     smoke.add_physical(torch.as_tensor(physical_source(source, cfg).sample(rng)))
-    smoke.add_visual(torch.as_tensor(visual_source(source, cfg).sample(rng)), cfg.color0, cfg.scale0, cfg.opacity0)
+    color, scale, opacity = look if look is not None else (cfg.color0, cfg.scale0, cfg.opacity0)
+    smoke.add_visual(torch.as_tensor(visual_source(source, cfg).sample(rng)), color, scale, opacity)

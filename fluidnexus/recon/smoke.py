@@ -44,11 +44,12 @@ class Smoke:
                    t(state.visual_positions), t(state.visual_colors), t(state.visual_scales),
                    t(state.visual_rotations), t(state.visual_opacities))
 
-    def add_visual(self, positions: torch.Tensor, color: float, scale: float, opacity: float) -> None:
-        """Append Gaussians at ``positions`` [K, 3] with the constant initial appearance."""
+    def add_visual(self, positions: torch.Tensor, color, scale: float, opacity: float) -> None:
+        """Append isotropic Gaussians at ``positions`` [K, 3] with one appearance (``color`` a float or [C])."""
         k, dtype = positions.shape[0], self.x.dtype
         self.x = torch.cat([self.x, positions.to(dtype)])
-        self.color = torch.cat([self.color, torch.full((k, self.color.shape[1]), color, dtype=dtype)])
+        rgb = torch.as_tensor(color, dtype=dtype).expand(k, self.color.shape[1])
+        self.color = torch.cat([self.color, rgb])
         self.scale = torch.cat([self.scale, torch.full((k, 3), scale, dtype=dtype)])
         rot = torch.zeros((k, 4), dtype=dtype)
         rot[:, 0] = 1.0

@@ -65,3 +65,20 @@ def test_predict_rejects_bad_model_options(start_run, tmp_path):
                     "--calibrate-window", 0)
     assert result.exit_code == 2 and "--calibrate-window" in result.output
     assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
+
+
+def test_new_smoke_looks_like_the_recent_inflow(start_run):
+    """The future's emitter gives new Gaussians the median look of the last 30 frames' emissions."""
+    from fluidnexus.predict.rollout import RunContext, inflow_look
+    from fluidnexus.recon.initial import visual_source
+    from fluidnexus.recon.smoke import Smoke
+
+    run = open_run(start_run)
+    ctx = RunContext.of(run)
+    smoke = Smoke.from_state(run.state(0), torch.float64)
+    recent = 30 * visual_source(ctx.source, ctx.config).count
+    smoke.add_visual(torch.zeros((recent, 3), dtype=torch.float64), 0.25, 0.004, 0.01)
+    smoke.opacity[-1] = 0.9  # one outlier does not move the median
+    color, scale, opacity = inflow_look(smoke, ctx)
+    assert torch.allclose(color, torch.tensor([0.25], dtype=torch.float64))
+    assert (scale, opacity) == (0.004, 0.01)
