@@ -62,49 +62,31 @@ def ssim(a, b, data_range: float = 1.0):
         raise ValueError(f"ssim: shapes differ: {tuple(a.shape)} vs {tuple(b.shape)}")
     if a.shape[-3] < WINDOW or a.shape[-2] < WINDOW:
         raise ValueError(f"ssim: images must be at least {WINDOW}x{WINDOW}, got {tuple(a.shape[-3:-1])}")
-    if _is_torch(a):
-        return _ssim_torch(a, b, data_range)
-    return _ssim_numpy(np.asarray(a, np.float64), np.asarray(b, np.float64), data_range)
+    if not _is_torch(a):
+        a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    out = _ssim_map(a, b, data_range).mean(axis=(-3, -2, -1))
+    return float(out) if not _is_torch(out) and np.ndim(out) == 0 else out
 
 
-def _ssim_map(filt, a, b, data_range: float):
-    """Wang et al. 2004 Eq. (13) from local Gaussian statistics; ``filt`` computes a valid-window blur."""
+def _valid_blur(x):
+    """Separable "valid" Gaussian blur (no padding) of ``[..., H, W, C]`` numpy or torch images, as weighted sums
+    of shifted slices: on the CPU this is several times faster than ``torch.nn.functional.conv2d`` with a 1-channel
+    11-tap kernel, forward and backward."""
+    g = gaussian_window().tolist()
+    n = x.shape[-3] - WINDOW + 1
+    rows = sum(g[k] * x[..., k:k + n, :, :] for k in range(WINDOW))
+    m = x.shape[-2] - WINDOW + 1
+    return sum(g[k] * rows[..., k:k + m, :] for k in range(WINDOW))
+
+
+def _ssim_map(a, b, data_range: float):
+    """Wang et al. 2004 Eq. (13) from local Gaussian statistics (valid windows)."""
     c1, c2 = (K1 * data_range) ** 2, (K2 * data_range) ** 2
-    mu_a, mu_b = filt(a), filt(b)
-    var_a = filt(a * a) - mu_a * mu_a
-    var_b = filt(b * b) - mu_b * mu_b
-    cov = filt(a * b) - mu_a * mu_b
+    mu_a, mu_b = _valid_blur(a), _valid_blur(b)
+    var_a = _valid_blur(a * a) - mu_a * mu_a
+    var_b = _valid_blur(b * b) - mu_b * mu_b
+    cov = _valid_blur(a * b) - mu_a * mu_b
     return ((2 * mu_a * mu_b + c1) * (2 * cov + c2)) / ((mu_a ** 2 + mu_b ** 2 + c1) * (var_a + var_b + c2))
-
-
-def _ssim_numpy(a: np.ndarray, b: np.ndarray, data_range: float):
-    g = gaussian_window()
-
-    def filt(x):  # separable valid convolution along H then W
-        x = np.moveaxis(x, (-3, -2), (0, 1))
-        h = sum(g[k] * x[k:x.shape[0] - WINDOW + 1 + k] for k in range(WINDOW))
-        w = sum(g[k] * h[:, k:h.shape[1] - WINDOW + 1 + k] for k in range(WINDOW))
-        return np.moveaxis(w, (0, 1), (-3, -2))
-
-    out = _ssim_map(filt, a, b, data_range).mean(axis=(-3, -2, -1))
-    return float(out) if np.ndim(out) == 0 else out
-
-
-def _ssim_torch(a, b, data_range: float):
-    import torch
-    import torch.nn.functional as F
-
-    g = torch.as_tensor(gaussian_window(), dtype=a.dtype, device=a.device)
-    lead, (h, w, c) = a.shape[:-3], a.shape[-3:]
-
-    def filt(x):  # [..., H, W, C] -> [N*C, 1, H, W] -> valid separable blur -> back
-        y = x.reshape(-1, h, w, c).permute(0, 3, 1, 2).reshape(-1, 1, h, w)
-        y = F.conv2d(y, g.view(1, 1, WINDOW, 1))
-        y = F.conv2d(y, g.view(1, 1, 1, WINDOW))
-        y = y.reshape(-1, c, y.shape[-2], y.shape[-1]).permute(0, 2, 3, 1)
-        return y.reshape(*lead, y.shape[-3], y.shape[-2], c)
-
-    return _ssim_map(filt, a, b, data_range).mean(dim=(-3, -2, -1))
 
 
 # ---- temporal flicker ---------------------------------------------------------------------------------
