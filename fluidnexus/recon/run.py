@@ -134,6 +134,9 @@ def reconstruct(scene: Scene, out: str | Path, setup: RunSetup, resume: bool = F
     first = _prepare_folder(out, scene, setup, frames, resume)
     obs = load_observations(scene, frames, cfg.resolution, cfg.channels)
     source, seeds = locate_smoke(scene, obs, cfg)
+    if first == frames[0]:  # predict/interact read the inflow from run.json, also of an unfinished run
+        write_json(out / "run.json", {**read_json(out / "run.json"),
+                                      "source": {"center": list(source.center), "radius": source.radius}})
     ws = Workspace(*capacities(frames[1] - frames[0], setup, source, len(seeds)), setup.solver, setup.model)
     handler = logging.FileHandler(out / "logs" / "recon.log")
     handler.setFormatter(logging.Formatter("%(asctime)s %(message)s"))
