@@ -5,7 +5,7 @@ e.g. the 120-frame run of the recon benchmark; frame 89 of a run depends on fram
 frame 89 and score at the run's resolution (the sample's 270 x 480) against the real future: the input view(s), the
 ground-truth novel view(s), and the same-run reference of repeating the last observed input frame. Variants: the
 physics alone with the paper's constants (--no-refit --no-calibrate), the physics with the backtest-calibrated model
-(--no-refit), and the default render / refine / re-fit loop.
+(--no-refit), the render / refine / re-fit loop without anchoring (--no-anchor), and the default loop (anchored).
 
     python benchmarks/bench_predict.py --protocol four-view --work /tmp/bp --first 0
     python benchmarks/bench_predict.py --run RUN --work /tmp/bp   # reuse a reconstruction
@@ -38,10 +38,10 @@ def main() -> None:
     ap.add_argument("--skip-refit", action="store_true", help="Only the physics rollout.")
     ap.add_argument("--recon-args", default="", help="Extra recon options, e.g. '--max-loss 100000'.")
     args = ap.parse_args()
-    work = args.work
+    work = args.work.resolve()  # the CLI runs from the repository root
     work.mkdir(parents=True, exist_ok=True)
     timing = {}
-    run = args.run
+    run = args.run.resolve() if args.run else None
     if run is None:
         scene = work / "scene"
         if not scene.exists():
@@ -52,7 +52,7 @@ def main() -> None:
     results = {"run": str(run), "protocol": args.protocol}
     variants = [("physics_paper_model", ["--no-refit", "--no-calibrate"]), ("physics", ["--no-refit"])]
     if not args.skip_refit:
-        variants.append(("refit", ["--refine", "temporal"]))
+        variants += [("refit_unanchored", ["--refine", "temporal", "--no-anchor"]), ("refit", ["--refine", "temporal"])]
     for name, extra in variants:
         out = work / f"predict_{name}"
         timing[f"{name}_s"] = cli("predict", run, "--from", 89, "--frames", args.frames, "--out", out, *extra)

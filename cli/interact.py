@@ -33,7 +33,8 @@ log = logging.getLogger("fluidnexus")
 @refine_options
 @arch_option
 def interact(run_dir: Path, wind, profile, wind_height, ball, mesh_file, from_frame, frames, out, model_file, calibrate,
-             calibrate_window, method, no_refit, weights, lora, strength, steps, seed, offload, device, arch) -> None:
+             calibrate_window, method, no_refit, anchor, weights, lora, strength, steps, seed, offload, device,
+             arch) -> None:
     """Simulate N frames of RUN with a wind force and/or a rigid obstacle, then render, refine and re-fit.
 
     Writes OUT/videos/compare_<view>.mp4: without | with the interaction, from the input camera and a novel one.
@@ -76,7 +77,7 @@ def interact(run_dir: Path, wind, profile, wind_height, ball, mesh_file, from_fr
 
         obstacle, info["obstacle"] = make_obstacle(ball, mesh_file)
     _, with_ = simulate_future(run, out, "interact", frames, Interaction(model, obstacle, info), refiner, from_frame,
-                               ctx, notes)
+                               ctx, notes, anchor)
     without = physics_baseline(run, frames, from_frame, ctx)
     for path in comparison_videos(run, out, without, with_, obstacle):
         log.info("wrote %s", path)

@@ -20,6 +20,8 @@ def refine_options(func):
         click.option("--refine", "method", type=click.Choice(["temporal", "cogvideox"]), default="temporal",
                      show_default=True, help="Refiner of the rough future videos."),
         click.option("--no-refit", is_flag=True, help="Stop after the physics rollout (no render/refine/re-fit)."),
+        click.option("--anchor/--no-anchor", default=True, show_default=True,
+                     help="Carry each view's look at the start frame along the rollout before refining."),
         click.option("--weights", type=click.Path(path_type=Path), help="cogvideox: local diffusers folder."),
         click.option("--lora", type=click.Path(path_type=Path), help="cogvideox: local LoRA folder."),
         click.option("--strength", type=float, default=0.75, show_default=True,
@@ -101,7 +103,7 @@ def check_frames(frames: int) -> None:
 @refine_options
 @arch_option
 def predict(run_dir: Path, frames: int, out: Path, from_frame, model_file, calibrate, calibrate_window, method,
-            no_refit, weights, lora, strength, steps, seed, offload, device, arch) -> None:
+            no_refit, anchor, weights, lora, strength, steps, seed, offload, device, arch) -> None:
     """Simulate N frames after the last frame of RUN, render them from every view, refine and re-fit.
 
     \b
@@ -118,4 +120,4 @@ def predict(run_dir: Path, frames: int, out: Path, from_frame, model_file, calib
     refiner = make_refiner(method, no_refit, weights, lora, strength, steps, seed, offload, device)
     start_engine(arch)
     ctx, notes = future_context(run, from_frame, model_file, calibrate, calibrate_window)
-    simulate_future(run, out, "predict", frames, Interaction(), refiner, from_frame, ctx, notes)
+    simulate_future(run, out, "predict", frames, Interaction(), refiner, from_frame, ctx, notes, anchor)

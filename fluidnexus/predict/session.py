@@ -24,6 +24,7 @@ from ..recon.smoke import Smoke
 from ..runs import RUN_FORMAT, Run
 from ..state import frame_path, save_frame
 from ..video import write_video
+from .anchor import anchor_videos, known_frames
 from .generative import refine_videos, refit, rough_videos
 from .rollout import RunContext, rollout, workspace_for
 from .shading import ObstacleLayer, render_with_obstacle
@@ -82,7 +83,7 @@ def scene_cameras(run: Run) -> list[tuple[str, Camera]]:
 
 def simulate_future(run: Run, out: Path, kind: str, frames: int, interaction: Interaction, refiner=None,
                     first: int | None = None, ctx: RunContext | None = None,
-                    notes: dict | None = None) -> tuple[list[Smoke], list[Smoke]]:
+                    notes: dict | None = None, anchor: bool = True) -> tuple[list[Smoke], list[Smoke]]:
     """Write the future of ``run`` into the run folder ``out``; return (physics rollout, saved frames).
 
     Args:
@@ -95,6 +96,8 @@ def simulate_future(run: Run, out: Path, kind: str, frames: int, interaction: In
         first: the frame to start after (default the run's last).
         ctx: the run's settings with the future's base model (default ``RunContext.of(run)``).
         notes: more entries for run.json (e.g. the model calibration).
+        anchor: carry each view's known look at the start frame along the rollout before refining
+            (``anchor.anchor_videos``).
     """
     if frames <= 0:
         raise InputError(None, "--frames", f"must be > 0, got {frames}")
@@ -102,7 +105,7 @@ def simulate_future(run: Run, out: Path, kind: str, frames: int, interaction: In
     ctx = ctx or RunContext.of(run)
     model = interaction.model or ctx.model
     info = {"interaction": interaction.info, "refine": None if refiner is None else refiner.provenance(),
-            **(notes or {})}
+            "anchor": refiner is not None and anchor, **(notes or {})}
     prepare(out, run, kind, first, frames, ctx, model, info)
     tic = time.perf_counter()
     start = Smoke.from_state(run.state(first), torch_dtype())
@@ -110,15 +113,19 @@ def simulate_future(run: Run, out: Path, kind: str, frames: int, interaction: In
     physics = list(track(rollout(start, frames, ws, ctx, interaction.obstacle), "simulate", frames))
     saved = physics
     if refiner is not None:
-        cams = scene_cameras(run)
-        rough = rough_videos(physics, [c for _, c in cams], ctx, constant=refiner.generative)
-        refined = refine_videos(rough, refiner)
+        names, cameras = zip(*scene_cameras(run))
+        rough = rough_videos([start] + physics, cameras, ctx, constant=refiner.generative)
+        if anchor:
+            known = known_frames(run.scene(check_videos=False), first, list(names), run.resolution, run.channels)
+            guide = anchor_videos(rough, physics, start, cameras, known)
+        else:
+            guide = rough[:, 1:]
+        refined = refine_videos(guide, refiner)
         fps = 1.0 / ctx.solver.dt
-        for (name, _), r, f in zip(cams, rough, refined):
+        for name, r, f in zip(names, rough[:, 1:], refined):
             write_video(out / "videos" / f"rough_{name}.mp4", r, fps=fps)
             write_video(out / "videos" / f"refined_{name}.mp4", f, fps=fps)
-        saved = list(refit(Smoke.from_state(run.state(first), torch_dtype()), refined, [c for _, c in cams], ws, ctx,
-                           interaction.obstacle))
+        saved = list(refit(start, refined, cameras, ws, ctx, interaction.obstacle))
     for smoke in saved:
         _save(out, smoke)
     elapsed = time.perf_counter() - tic

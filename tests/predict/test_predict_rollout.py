@@ -57,7 +57,7 @@ def test_predict_refit_writes_a_scoreable_run(start_run, tmp_path):
     out = tmp_path / "refit"
     ok("predict", start_run, "--frames", 2, "--out", out, "--arch", "cpu")
     pred = open_run(out)
-    assert pred.frames == [1, 2]
+    assert pred.frames == [1, 2] and pred.info["anchor"] is True
     views = [v["name"] for v in json.loads((pred.scene_dir / "scene.json").read_text())["views"]]
     for name in views:
         assert (out / "videos" / f"refined_{name}.mp4").exists()
