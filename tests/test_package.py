@@ -41,3 +41,11 @@ def test_atomic_dir_replaces_only_when_complete(tmp_path):
         (tmp / "b").write_text("new")
     assert [p.name for p in dest.iterdir()] == ["b"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["scene"]
+
+
+def test_cpu_engine_keeps_torch_to_one_thread():
+    """On the CPU the engine owns the cores: starting it leaves torch one intra-op thread (engine/runtime.py)."""
+    code = ("import torch; torch.set_num_threads(2); from fluidnexus import engine; engine.init('cpu'); "
+            "print(torch.get_num_threads())")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip().splitlines()[-1] == "1"

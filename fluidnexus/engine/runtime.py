@@ -39,6 +39,12 @@ def init(arch: str = "cpu", precision: str = "f32", debug: bool = False) -> Runt
 
     A call with different settings restarts Taichi, which invalidates every existing field.
 
+    On the CPU the cores belong to Taichi's kernels: torch's intra-op pool is set to one thread, because the
+    torch work between kernels (losses, optimiser steps on ~10^5-element tensors) gains little from a second
+    thread and its parallel loops stall at their barrier whenever the other core is busy (a Taichi kernel or
+    another process): on the 2-core CPU with other jobs running, the 0.8 L1 + 0.2 D-SSIM loss of one 270 x 480
+    frame took 1-4 s with two torch threads and 60 ms with one (docs/renderer.md).
+
     Args:
         arch: "cpu" or "cuda" (resolve "auto" with :func:`resolve_arch` first).
         precision: "f32" or "f64"; the engine's real-valued fields and literals use it.
@@ -63,6 +69,10 @@ def init(arch: str = "cpu", precision: str = "f32", debug: bool = False) -> Runt
         log_level=ti.WARN,
         random_seed=0,
     )
+    if arch == "cpu":
+        import torch
+
+        torch.set_num_threads(1)
     _current = cfg
     return cfg
 
