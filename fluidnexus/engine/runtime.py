@@ -14,6 +14,10 @@ os.environ.setdefault("ENABLE_TAICHI_HEADER_PRINT", "False")
 import taichi as ti  # noqa: E402
 
 ARCHES = ("cpu", "cuda")
+#: Taichi's offline kernel cache keeps this many bytes. Its default, 100 MiB with least-recently-used cleaning at
+#: exit, is less than the kernels of one float32 reconstruction plus one float64 test session (about 110 MiB), so
+#: each run evicted kernels the next one compiled again (10-30 s each time a neighbour table grew).
+CACHE_BYTES = 1 << 30
 
 
 @dataclass(frozen=True)
@@ -66,6 +70,7 @@ def init(arch: str = "cpu", precision: str = "f32", debug: bool = False) -> Runt
         debug=debug,
         offline_cache=True,
         offline_cache_file_path=str(cache_dir()),
+        offline_cache_max_size_of_files=CACHE_BYTES,
         log_level=ti.WARN,
         random_seed=0,
     )
