@@ -20,6 +20,6 @@ __all__ = ["init", "current", "is_running", "real", "resolve_arch", "TERMS", "Bu
            "PhysicalParticles", "VisualParticles", "prune", "SourceDisk", "cylinder_lattice",
            "scalarflow_initial_lattice", "stabilize"]
 
-from .splat import render  # noqa: E402  (differentiable 3D Gaussian splatting, docs/renderer.md)
+from .splat import render, reserve_gaussians  # noqa: E402  (differentiable 3D Gaussian splatting, docs/renderer.md)
 
-__all__ += ["render"]
+__all__ += ["render", "reserve_gaussians"]

@@ -34,6 +34,7 @@ class Workspace:
         self._pair_points = ti.Vector.field(3, engine.real(), shape=visual_capacity)
         self._pair_dtype = np.float64 if self.dtype == torch.float64 else np.float32
         self._pair_table = NeighborTable(visual_capacity, width=32)
+        engine.reserve_gaussians(visual_capacity)  # the render kernels compile once, not at every doubling
 
     @property
     def dt(self) -> float:

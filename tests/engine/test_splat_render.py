@@ -162,6 +162,30 @@ def test_buffers_grow_for_more_gaussians_and_pixels(ti_engine):
         fields.owner = None
 
 
+def test_reserved_capacity_is_kept_by_later_renders(ti_engine):
+    """reserve_gaussians sizes the fields once: a render within the reserved count keeps them (so the render
+    kernels are not re-instantiated for new fields), and its image is the reference's."""
+    from fluidnexus.engine import reserve_gaussians, splat_buffers
+    from fluidnexus.engine.splat import render
+
+    fields = splat_buffers.splat_fields()
+    saved = fields.gauss, fields.pixels
+    try:
+        reserve_gaussians(3000)
+        reserved = fields.gauss
+        assert reserved.cap >= 3000
+        inputs = random_gaussians(1100, 1, seed=5, scale=(0.01, 0.03), opacity=(0.05, 0.2))
+        camera, bg = front_camera(24, 16), torch.tensor([0.25], dtype=torch.float64)
+        image = render(camera, *inputs, bg)[0]
+        assert fields.gauss is reserved
+        torch.testing.assert_close(image, render_reference(camera, *inputs, bg)[0], **FWD_TOL)
+        reserve_gaussians(10)  # a smaller reservation never shrinks the fields
+        assert fields.gauss is reserved
+    finally:  # later tests keep the kernels already compiled for the initial fields
+        fields.gauss, fields.pixels = saved
+        fields.owner = None
+
+
 def test_bad_shapes_raise(ti_engine):
     from fluidnexus.engine.splat import render
 
