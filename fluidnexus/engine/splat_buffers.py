@@ -6,7 +6,8 @@ tensors passed to kernels as ndarrays, so its size never forces a recompile. Ten
 fields through ``tensors.load`` / ``tensors.store`` (the engine's one torch bridge).
 
 Capacities grow geometrically (powers of two), so a kernel is re-instantiated for new fields only
-O(log N) times per process. Fields of an outgrown capacity are not freed (at most about as much memory again).
+O(log N) times per process; ``splat.reserve_gaussians`` sizes them up front for a caller that knows its
+count. Fields of an outgrown capacity are not freed (at most about as much memory again).
 """
 
 import taichi as ti
