@@ -62,8 +62,7 @@ def prepare(out: Path, run: Run, kind: str, first: int, frames: int, ctx: RunCon
     (out / "frames").mkdir(parents=True, exist_ok=True)
     write_json(out / "run.json", {"format": RUN_FORMAT, "kind": kind, "scene": run.info["scene"],
                                   "frames": [first + 1, first + 1 + frames], "parent": str(run.root.resolve()),
-                                  "start_frame": first, "source": {"center": list(ctx.source.center),
-                                                                   "radius": ctx.source.radius}, **info})
+                                  "start_frame": first, "source": ctx.source.to_dict(), **info})
     write_json(out / "config.json", {"recon": ctx.config.to_dict(), "solver": ctx.solver.to_dict(),
                                      "model": model.to_dict()})
 

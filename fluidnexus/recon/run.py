@@ -135,8 +135,7 @@ def reconstruct(scene: Scene, out: str | Path, setup: RunSetup, resume: bool = F
     obs = load_observations(scene, frames, cfg.resolution, cfg.channels)
     source, seeds = locate_smoke(scene, obs, cfg)
     if first == frames[0]:  # predict/interact read the inflow from run.json, also of an unfinished run
-        write_json(out / "run.json", {**read_json(out / "run.json"),
-                                      "source": {"center": list(source.center), "radius": source.radius}})
+        write_json(out / "run.json", {**read_json(out / "run.json"), "source": source.to_dict()})
     ws = Workspace(*capacities(frames[1] - frames[0], setup, source, len(seeds)), setup.solver, setup.model)
     handler = logging.FileHandler(out / "logs" / "recon.log")
     handler.setFormatter(logging.Formatter("%(asctime)s %(message)s"))
@@ -179,7 +178,7 @@ def _frame_loop(out, setup, obs, ws, source, seeds, first, watch, volume) -> dic
             bar.advance()
     elapsed = time.perf_counter() - started
     summary = {"format": RUN_FORMAT, "frames": [start, stop], "frames_this_session": stop - first,
-               "source": {"center": list(source.center), "radius": source.radius},
+               "source": source.to_dict(),
                "elapsed_s": round(elapsed, 3), "timing_s": watch.totals(),
                "seconds_per_frame": round(elapsed / max(1, stop - first), 3),
                "particles": {"physical": int(smoke.p.shape[0]), "visual": int(smoke.x.shape[0])}}

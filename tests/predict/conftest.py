@@ -35,7 +35,6 @@ def start_run(tmp_path_factory, ti_engine):
     (run / "run.json").write_text(json.dumps({"format": RUN_FORMAT, "kind": "recon", "scene": str(scene_dir),
                                               "frames": [0, 1]}))
     (run / "config.json").write_text(json.dumps(setup.to_dict()))
-    (run / "summary.json").write_text(json.dumps({"source": {"center": list(source.center),
-                                                             "radius": source.radius}}))
+    (run / "summary.json").write_text(json.dumps({"source": source.to_dict()}))
     save_frame(frame_path(run, 0), smoke.to_state())
     return run
