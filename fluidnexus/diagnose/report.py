@@ -33,7 +33,7 @@ def model_dict(fit, setup) -> dict:
 
 
 def write_outputs(out_dir: Path, observed, base, fits: dict, judged: dict, finding: str, train, validate,
-                  fitter, seconds: float) -> dict:
+                  fitter, spread: tuple[int, float], seconds: float) -> dict:
     out_dir.mkdir(parents=True, exist_ok=True)
     a = train[0]
     va = np.arange(validate[0] - a, validate[1] - a)
@@ -52,8 +52,8 @@ def write_outputs(out_dir: Path, observed, base, fits: dict, judged: dict, findi
     write_json(out_dir / "report.json", report)
     write_json(out_dir / "model.json", model_dict(chosen, fitter.sim.setup))
     plots = _plots(out_dir, observed, base, chosen, finding, train, validate)
-    (out_dir / "report.md").write_text(_markdown(report, observed, base, chosen, judged, finding, va, plots,
-                                                 fitter, seconds))
+    text = _markdown(report, observed, base, fits, judged, finding, va, plots, fitter, spread, seconds)
+    (out_dir / "report.md").write_text(text)
     return report
 
 
@@ -90,23 +90,23 @@ def _plots(out_dir, observed, base, chosen, finding, train, validate) -> dict:
     return {"observed": o, "base": s0, "chosen": s1, "files": written}
 
 
-def _markdown(report, observed, base, chosen, judged, finding, va, plots, fitter, seconds) -> str:
+def _markdown(report, observed, base, fits, judged, finding, va, plots, fitter, spread, seconds) -> str:
     o, s0, s1 = plots["observed"], plots["base"], plots["chosen"]
     last = observed.first + observed.images.shape[1] - 1
     dx = o.centroid[-1] - s0.centroid[-1]
-    di = (o.intensity[-1] - s0.intensity[-1]) / max(o.intensity[-1], 1e-12)
+    di = (s0.intensity[-1] - o.intensity[-1]) / max(o.intensity[-1], 1e-12)
     lines = ["# diagnose report", "",
              f"Views used ({len(observed.names)}): {', '.join(observed.names)}. Training frames "
              f"{report['windows']['train'][0]}:{report['windows']['train'][1]}, validation frames "
              f"{report['windows']['validate'][0]}:{report['windows']['validate'][1]} (half-open). "
              f"{fitter.evaluations} rollouts, {seconds:.0f} s.", "",
              "## What the base model gets wrong", "",
-             f"Base model (buoyancy alpha {base.params.alpha:.4f}, drag k {base.params.k:.2f} 1/s, source "
+             f"Base model (buoyancy alpha {base.params.alpha:.3g}, drag k {base.params.k:.2f} 1/s, source "
              f"{base.params.layers:.1f} layers/s) fitted on the "
              f"training frames. By frame {last} the real plume's centroid is "
              f"{100 * dx[0]:+.1f} cm in x, {100 * dx[1]:+.1f} cm in y and {100 * dx[2]:+.1f} cm in z from the "
-             f"simulated one; its visible smoke is {100 * di:+.0f} % of the real amount off "
-             f"(real minus simulated); front height real {o.front[-1]:.3f} m, simulated {s0.front[-1]:.3f} m; "
+             f"simulated one; the simulated plume shows {abs(100 * di):.0f} % {'more' if di > 0 else 'less'} "
+             f"smoke than the real one; front height real {o.front[-1]:.3f} m, simulated {s0.front[-1]:.3f} m; "
              f"width real {o.width[-1]:.3f} m, simulated {s0.width[-1]:.3f} m.", ""]
     g = report["finding"]["gain"]
     if finding == "none":
@@ -126,12 +126,20 @@ def _markdown(report, observed, base, chosen, judged, finding, va, plots, fitter
                   f"{100 * (o.centroid[-1] - s1.centroid[-1])[1]:+.1f} / "
                   f"{100 * (o.centroid[-1] - s1.centroid[-1])[2]:+.1f} cm (x / y / z) from the real one.", ""]
     lines += ["## Candidates (judged on the validation frames only)", "",
-              "| effect | fitted parameters | validation error before | after | gain | p | selected |",
-              "|---|---|---|---|---|---|---|"]
+              "| effect | fitted parameters | training error before | after | validation error before | after | "
+              "gain | p | selected |", "|---|---|---|---|---|---|---|---|---|"]
+    t0 = fitter.train_error(base)
     for c in report["candidates"]:
         j = judged[c["effect"]]
-        lines.append(f"| {c['effect']} | {c['params']} | {j.before:.4f} | {j.after:.4f} | "
-                     f"{100 * j.relative_gain:.1f} % | {j.p_value:.2g} | {'yes' if c['selected'] else 'no'} |")
+        lines.append(f"| {c['effect']} | {c['params']} | {t0:.4f} | {fitter.train_error(fits[c['effect']]):.4f} | "
+                     f"{j.before:.4f} | {j.after:.4f} | {100 * j.relative_gain:.1f} % | {j.p_value:.2g} | "
+                     f"{'yes' if c['selected'] else 'no'} |")
+    lines += ["", f"How far the training frames pin the base model: {spread[0]} fits of the base model alone "
+              "(no extension, from the base and control searches) come within 5 % of the control's training "
+              "error; " + (f"the best of them has a validation error {100 * spread[1]:.1f} % below the "
+                           "control's. A candidate's gain of that size could come from where its search stopped "
+                           "rather than from its term; read such a finding with care."
+                           if spread[1] > 0 else "none of them has a lower validation error than the control.")]
     lines += ["", f"Metric: {report['finding']['gain']['metric']} = the {_METRIC_TEXT}.", "", "## Plots", ""]
     lines += [f"- {title}: ![{title}]({name})" for name, title in plots["files"].items()]
     return "\n".join(lines) + "\n"

@@ -47,6 +47,8 @@ class Fitter:
         self.sim, self.observed, self.cameras, self.sigma = sim, observed, cameras, sigma_px
         self.train = train
         self.evaluations = 0
+        #: every model scored so far: (its extension names, image error per frame [T])
+        self.scored: list[tuple[tuple[str, ...], np.ndarray]] = []
 
     def evaluate(self, params: PlumeParams, rollout: Rollout | None = None) -> Fit:
         """Roll out (unless given), render, fit the gain on the training frames, score every frame."""
@@ -58,7 +60,9 @@ class Fitter:
         gain = float((o * s).sum() / max((s * s).sum(), 1e-12))
         params = params.with_gain(gain)
         images = unit * gain
-        return Fit(params, rollout, images, image_error(self.observed, images))
+        errors = image_error(self.observed, images)
+        self.scored.append((tuple(params.extensions), errors))
+        return Fit(params, rollout, images, errors)
 
     def train_error(self, fit: Fit) -> float:
         return float(fit.errors[self.train].mean())
@@ -154,6 +158,18 @@ def fit_dissipation(fitter: Fitter, base: Fit, max_rate: float = 5.0) -> Fit:
 
     rate = optimize.minimize_scalar(loss, bounds=(0.0, max_rate), method="bounded", options={"xatol": 1e-3}).x
     return fitter.evaluate(params(rate), base.rollout)
+
+
+def search_spread(fitter: Fitter, control: Fit, validate: np.ndarray, tolerance: float = 0.05) -> tuple[int, float]:
+    """How much the validation error of the base model alone varies among fits the training frames cannot tell
+    apart: over every base-model fit scored so far (no extension) whose training error is within ``tolerance``
+    of the control's, the number of such fits and the largest relative drop of the validation error below the
+    control's. A candidate's gain of that size could come from where the search stopped, not from its term."""
+    limit = fitter.train_error(control) * (1 + tolerance)
+    v0 = float(control.errors[validate].mean())
+    vals = [float(e[validate].mean()) for names, e in fitter.scored
+            if not names and float(e[fitter.train].mean()) <= limit]
+    return len(vals), max(0.0, (v0 - min(vals)) / max(v0, 1e-12)) if vals else 0.0
 
 
 @dataclass(frozen=True)

@@ -2,10 +2,11 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from fluidnexus.camera import Camera
 from fluidnexus.diagnose.observe import observables, splat_points, triangulate
-from fluidnexus.diagnose.search import judge
+from fluidnexus.diagnose.search import Fit, Fitter, judge, search_spread
 
 
 def cameras():
@@ -40,3 +41,21 @@ def test_judge_passes_a_clear_gain_and_refuses_noise():
     assert judge(before, 0.6 * before).passes
     assert not judge(before, before).passes
     assert not judge(before, before * (1 + 0.05 * rng.normal(size=30))).passes
+
+
+def test_search_spread_counts_base_fits_the_training_frames_cannot_tell_apart():
+    train, validate = np.arange(4), np.arange(4, 6)
+    fitter = Fitter(None, np.zeros((1, 6, 2, 2)), [], 1.0, train)
+
+    def errors(tr, va):
+        return np.array([tr] * 4 + [va] * 2, float)
+
+    control = Fit(None, None, None, errors(0.10, 0.50))
+    fitter.scored += [((), control.errors),
+                      ((), errors(0.104, 0.40)),             # as good on training, 20 % better on validation
+                      ((), errors(0.20, 0.10)),              # better on validation, but not on training
+                      (("swirl",), errors(0.09, 0.05))]      # an extension: not the base model
+    count, drop = search_spread(fitter, control, validate)
+    assert count == 2 and drop == pytest.approx(0.2)
+    # a control better on training than every scored base fit: nothing to compare, no spread
+    assert search_spread(fitter, Fit(None, None, None, errors(0.05, 0.5)), validate) == (0, 0.0)
