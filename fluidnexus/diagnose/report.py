@@ -9,7 +9,7 @@ from fluidnexus.atomic import write_json
 
 from .observe import observables
 from .plots import line_plot
-from .search import MAX_P_VALUE, MIN_RELATIVE_GAIN
+from .search import MAX_P_VALUE, MIN_RELATIVE_GAIN, SPREAD_TOLERANCE
 
 MODEL_FORMAT = "fluidnexus-model/1"
 
@@ -134,12 +134,12 @@ def _markdown(report, observed, base, fits, judged, finding, va, plots, fitter, 
         lines.append(f"| {c['effect']} | {c['params']} | {t0:.4f} | {fitter.train_error(fits[c['effect']]):.4f} | "
                      f"{j.before:.4f} | {j.after:.4f} | {100 * j.relative_gain:.1f} % | {j.p_value:.2g} | "
                      f"{'yes' if c['selected'] else 'no'} |")
+    same = (f"the best of them has a validation error {100 * spread[1]:.1f} % below the control's. A candidate's "
+            "gain of that size could come from where its search stopped rather than from its term; read such a "
+            "finding with care." if spread[1] > 0 else "none of them has a lower validation error than the control.")
     lines += ["", f"How far the training frames pin the base model: {spread[0]} fits of the base model alone "
-              "(no extension, from the base and control searches) come within 5 % of the control's training "
-              "error; " + (f"the best of them has a validation error {100 * spread[1]:.1f} % below the "
-                           "control's. A candidate's gain of that size could come from where its search stopped "
-                           "rather than from its term; read such a finding with care."
-                           if spread[1] > 0 else "none of them has a lower validation error than the control.")]
+              f"(no extension, from the base and control searches) come within {100 * SPREAD_TOLERANCE:.0f} % of "
+              f"the control's training error; {same}"]
     lines += ["", f"Metric: {report['finding']['gain']['metric']} = the {_METRIC_TEXT}.", "", "## Plots", ""]
     lines += [f"- {title}: ![{title}]({name})" for name, title in plots["files"].items()]
     return "\n".join(lines) + "\n"

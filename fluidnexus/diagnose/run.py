@@ -15,7 +15,7 @@ from fluidnexus.video import read_video
 from .observe import Observed, observables
 from .plume import EXTENSIONS, PlumeSetup, PlumeSimulator
 from .report import write_outputs
-from .search import Fitter, fit_base, fit_candidate, judge, search_spread
+from .search import SPREAD_TOLERANCE, Fitter, fit_base, fit_candidate, judge, search_spread
 
 log = logging.getLogger("fluidnexus")
 
@@ -123,8 +123,8 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
                  fitter.train_error(fits[name]), judged[name].before, judged[name].after,
                  100 * judged[name].relative_gain, judged[name].p_value)
     spread = search_spread(fitter, base, va)
-    log.info("search spread: %d base-model fits within 5 %% of the control's training error reach a validation "
-             "error %.1f %% below the control's", spread[0], 100 * spread[1])
+    log.info("search spread: %d base-model fits within %.0f %% of the control's training error reach a "
+             "validation error %.1f %% below the control's", spread[0], 100 * SPREAD_TOLERANCE, 100 * spread[1])
     passing = [n for n in candidates if judged[n].passes]
     finding = max(passing, key=lambda n: judged[n].relative_gain) if passing else "none"
     report = write_outputs(out_dir, observed, base, fits, judged, finding, (a, b), (c, d), fitter, spread,

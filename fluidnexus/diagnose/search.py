@@ -20,6 +20,9 @@ from .plume import PlumeParams, PlumeSimulator, Rollout, render_rollout
 MIN_RELATIVE_GAIN = 0.20
 #: ... and a one-sided Wilcoxon signed-rank test over the validation frames gives p below this.
 MAX_P_VALUE = 0.01
+#: Base-model fits whose training error is within this fraction of the control's count as equally good on the
+#: training frames (search_spread).
+SPREAD_TOLERANCE = 0.05
 
 
 @dataclass
@@ -160,12 +163,13 @@ def fit_dissipation(fitter: Fitter, base: Fit, max_rate: float = 5.0) -> Fit:
     return fitter.evaluate(params(rate), base.rollout)
 
 
-def search_spread(fitter: Fitter, control: Fit, validate: np.ndarray, tolerance: float = 0.05) -> tuple[int, float]:
+def search_spread(fitter: Fitter, control: Fit, validate: np.ndarray) -> tuple[int, float]:
     """How much the validation error of the base model alone varies among fits the training frames cannot tell
-    apart: over every base-model fit scored so far (no extension) whose training error is within ``tolerance``
-    of the control's, the number of such fits and the largest relative drop of the validation error below the
-    control's. A candidate's gain of that size could come from where the search stopped, not from its term."""
-    limit = fitter.train_error(control) * (1 + tolerance)
+    apart: over every base-model fit scored so far (no extension) whose training error is within
+    :data:`SPREAD_TOLERANCE` of the control's, the number of such fits and the largest relative drop of the
+    validation error below the control's. A candidate's gain of that size could come from where the search
+    stopped, not from its term."""
+    limit = fitter.train_error(control) * (1 + SPREAD_TOLERANCE)
     v0 = float(control.errors[validate].mean())
     vals = [float(e[validate].mean()) for names, e in fitter.scored
             if not names and float(e[fitter.train].mean()) <= limit]
