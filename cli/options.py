@@ -9,6 +9,11 @@ from fluidnexus.errors import InputError
 arch_option = click.option("--arch", type=click.Choice(["auto", "cpu", "cuda"]), default="auto", show_default=True,
                            help="Where the Taichi engine runs.")
 
+max_memory_option = click.option(
+    "--max-memory", default="auto", show_default=True,
+    help="Refuse to start when the run's estimated memory is above this (e.g. 8G, 1500M); "
+         "auto: 80 % of the memory available now.")
+
 
 def start_engine(arch: str) -> str:
     """Resolve ``--arch`` and start the engine (float32); returns the arch used.

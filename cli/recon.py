@@ -12,7 +12,7 @@ from fluidnexus.errors import InputError
 from fluidnexus.scene import load_scene
 from fluidnexus.video import parse_frame_range
 
-from .options import arch_option, load_model_file, start_engine
+from .options import arch_option, load_model_file, max_memory_option, start_engine
 
 log = logging.getLogger("fluidnexus")
 SPECIAL = {"frames", "channels", "resolution"}
@@ -20,13 +20,14 @@ SPECIAL = {"frames", "channels", "resolution"}
 
 def _settings_options(func):
     """One ``--name`` option per reconstruction setting (weights, iterations, learning rates, ...)."""
-    from fluidnexus.recon.config import ReconConfig
+    from fluidnexus.recon.config import LENGTHS, ReconConfig
 
     for f in reversed(dataclasses.fields(ReconConfig)):
         if f.name in SPECIAL:
             continue
+        scaled = " m x the scene's length scale (docs/scale.md)" if f.name in LENGTHS else ""
         func = click.option(f"--{f.name.replace('_', '-')}", f.name, type=type(f.default), default=None,
-                            help=f"default {f.default}")(func)
+                            help=f"default {f.default}{scaled}")(func)
     return func
 
 
@@ -60,14 +61,17 @@ def load_overrides(path: Path | None) -> dict:
 @click.option("--model", "model_file", type=click.Path(path_type=Path, dir_okay=False),
               help="A model.json (e.g. from `fluidnexus diagnose`) instead of the paper's ScalarFlow gas.")
 @click.option("--resume", is_flag=True, help="Continue an interrupted run in --out.")
+@max_memory_option
 @arch_option
 @_settings_options
-def recon(scene_dir: Path, out: Path, frames_text, resolution, channels, config_file, model_file, resume, arch,
-          **settings) -> None:
+def recon(scene_dir: Path, out: Path, frames_text, resolution, channels, config_file, model_file, resume, max_memory,
+          arch, **settings) -> None:
     """Reconstruct physical and visual particles of SCENE_DIR frame by frame (FluidNexus Alg. S1)."""
-    from fluidnexus.recon.config import ReconConfig
+    from fluidnexus.memory import parse_limit
+    from fluidnexus.recon.config import config_for_scene
     from fluidnexus.recon.run import default_setup, reconstruct
 
+    limit = parse_limit(max_memory)
     scene = load_scene(scene_dir)
     values = load_overrides(config_file)
     values.update({k: v for k, v in settings.items() if v is not None})
@@ -76,9 +80,9 @@ def recon(scene_dir: Path, out: Path, frames_text, resolution, channels, config_
         values["frames"] = (rng.start or 0, rng.stop)
     values["resolution"] = resolve_resolution(resolution, scene)
     values["channels"] = 1 if channels == "gray" else 3
-    cfg = ReconConfig.from_dict(values, config_file)
+    cfg = config_for_scene(scene, values, config_file)  # lengths follow the scene's size unless given
     model = load_model_file(model_file)
     start_engine(arch)
-    summary = reconstruct(scene, out, default_setup(scene, cfg, model), resume=resume)
+    summary = reconstruct(scene, out, default_setup(scene, cfg, model), resume=resume, max_memory=limit)
     log.info("reconstructed frames %d:%d into %s (%.1f s per frame)", *summary["frames"], out,
              summary["seconds_per_frame"])

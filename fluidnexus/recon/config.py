@@ -6,6 +6,8 @@ on a 2-core CPU that is about an hour for the 120 ScalarFlow frames, so the defa
 
 Lengths are metres. The release works in a x100 scaled space (1 unit = 1 cm); its squared-distance weights are
 kept by measuring the simulation term in centimetres (``LENGTH_UNIT``), see docs/reconstruction.md.
+The defaults are ScalarFlow's; :func:`config_for_scene` multiplies every setting named in ``LENGTHS`` (and the
+loss unit) by the scene's length-scale factor (``fluidnexus.scene_scale``, docs/scale.md).
 """
 from __future__ import annotations
 
@@ -14,6 +16,10 @@ from dataclasses import asdict, dataclass, fields, replace
 from ..errors import InputError
 
 LENGTH_UNIT = 0.01  # metres per release unit: L_sim = lambda_sim * mean(|(p - p_sim) / LENGTH_UNIT|^2)
+# The length settings (metres; defaults at ScalarFlow's scale), multiplied by the scene's length scale.
+LENGTHS = ("lr_position", "visual_sigma", "scale0", "visual_spacing", "visual_radius", "init_visual_radius",
+           "physical_spacing", "physical_radius", "physical_height", "physical_emit_spacing",
+           "physical_emit_radius", "init_visual_height")
 
 
 @dataclass(frozen=True)
@@ -51,6 +57,8 @@ class ReconConfig:
         physical_emit_spacing, physical_emit_radius: physical emitter lattice spacing and disk radius, metres.
         init_visual_height: height of the frame-0 visual cylinder above the source, metres.
         stabilization_steps: N_stable steps before frame 0.
+        length_scale: the scene's length-scale factor the lengths were derived with (1 on ScalarFlow); it also
+            scales the loss unit (``loss_unit``) and the fixed offsets of the initialisation.
         max_loss: a loss above this (or NaN) stops the run (divergence). The visual spacing term is a sum over
             pairs and reaches thousands on a healthy 120-frame run, hence the high default.
     """
@@ -93,6 +101,7 @@ class ReconConfig:
     physical_emit_radius: float = 0.09
     init_visual_height: float = 0.05
     stabilization_steps: int = 20
+    length_scale: float = 1.0
     max_loss: float = 1e6
 
     def __post_init__(self):
@@ -105,13 +114,18 @@ class ReconConfig:
         }
         for name in ("lr_position", "visual_sigma", "scale0", "visual_spacing", "visual_radius",
                      "physical_spacing", "physical_radius", "physical_height", "init_visual_radius",
-                     "physical_emit_spacing", "physical_emit_radius", "init_visual_height"):
+                     "physical_emit_spacing", "physical_emit_radius", "init_visual_height", "length_scale"):
             checks[name] = getattr(self, name) > 0
         checks["opacity0"] = 0 < self.opacity0 < 1
         checks["color0"] = 0 < self.color0 < 1
         for name, ok in checks.items():
             if not ok:
                 raise InputError(None, f"--{name.replace('_', '-')}", f"impossible value {getattr(self, name)!r}")
+
+    @property
+    def loss_unit(self) -> float:
+        """Metres per loss unit of the squared-length terms (the release's 1 cm at ScalarFlow's scale)."""
+        return LENGTH_UNIT * self.length_scale
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -132,6 +146,17 @@ class ReconConfig:
     def with_overrides(self, **values) -> "ReconConfig":
         """A copy with the given settings changed (command-line values win over file values)."""
         return replace(self, **{k: v for k, v in values.items() if v is not None})
+
+
+def config_for_scene(scene, values: dict, path=None) -> ReconConfig:
+    """The settings for ``scene``: every length in ``LENGTHS`` is its ScalarFlow default times the scene's
+    length-scale factor; ``values`` (a settings file, the command line) win over that."""
+    from ..scene_scale import scaled, scene_factor
+
+    factor = scene_factor(scene)
+    defaults = {f.name: f.default for f in fields(ReconConfig)}
+    derived = {**scaled({k: defaults[k] for k in LENGTHS}, factor), "length_scale": factor}
+    return ReconConfig.from_dict({**derived, **values}, path)
 
 
 def differing_keys(a: dict, b: dict) -> list[str]:

@@ -104,7 +104,7 @@ def fit_dynamics(prev: Smoke, ws: Workspace, views: Views, cfg: ReconConfig, gen
         terms = {"image": _render_loss(views, views.pick(generator, cfg.views_per_iter), cfg, watch, x, prev.color,
                                        prev.scale, prev.rotation, prev.opacity)}
         if cfg.lambda_sim:
-            terms["sim"] = cfg.lambda_sim * simulation_loss(p, p_sim)
+            terms["sim"] = cfg.lambda_sim * simulation_loss(p, p_sim, cfg.loss_unit)
         if cfg.lambda_density:
             terms["density"] = cfg.lambda_density * density_loss(engine.density_at(p, p, ws.density_query), rho0)
         if cfg.lambda_next:
@@ -112,7 +112,7 @@ def fit_dynamics(prev: Smoke, ws: Workspace, views: Views, cfg: ReconConfig, gen
                 p_next, _ = ws.simulate(p, u, age, differentiable=True)
             terms["next"] = cfg.lambda_next * density_loss(engine.density_at(p_next, p_next, ws.next_query), rho0)
         if pairs is not None:
-            terms["spacing"] = cfg.lambda_visual_incomp * spacing_loss(x, pairs, cfg.visual_sigma)
+            terms["spacing"] = cfg.lambda_visual_incomp * spacing_loss(x, pairs, cfg.visual_sigma, cfg.loss_unit)
         _step(sum(terms.values()), opt, cfg, "dynamics", watch)
         if progress is not None:
             progress.status(**{k: float(v.detach()) for k, v in terms.items()})

@@ -22,27 +22,42 @@ class Hull:
     voxel: float
 
 
+CHUNK_POINTS = 1 << 18  # voxels tested at once: the hull's working memory is bounded by this, not by the grid
+
+
+def hull_grid(volume: Volume, voxel: float) -> list[np.ndarray]:
+    """The voxel centres along each axis of a ``voxel``-metre grid over ``volume``."""
+    lo, hi = np.asarray(volume.min), np.asarray(volume.max)
+    return [np.arange(lo[a] + voxel / 2, hi[a], voxel) for a in range(3)]
+
+
 def visual_hull(cameras: tuple[Camera, ...], images: np.ndarray, volume: Volume, voxel: float,
                 threshold: float = 0.05) -> Hull:
     """Voxel centres on a ``voxel``-metre grid over ``volume`` that every view sees, as smoke.
+
+    The grid is tested in slabs of at most ``CHUNK_POINTS`` voxels (whole x-planes), so the memory needed is
+    that of one slab plus the kept points, whatever the grid's size.
 
     Args:
         cameras: [V] cameras matching ``images``.
         images: [V, H, W, C] one frame per view, in [0, 1].
     """
-    lo, hi = np.asarray(volume.min), np.asarray(volume.max)
-    axes = [np.arange(lo[a] + voxel / 2, hi[a], voxel) for a in range(3)]
-    pts = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
-    inside = np.ones(len(pts), bool)
-    for cam, image in zip(cameras, images):
-        mask = image.max(axis=2) > threshold
-        uv, depth = cam.project(pts)
-        col, row = np.floor(uv[:, 0]).astype(int), np.floor(uv[:, 1]).astype(int)
-        seen = (depth > 0) & (col >= 0) & (col < cam.width) & (row >= 0) & (row < cam.height)
-        smoke = np.zeros(len(pts), bool)
-        smoke[seen] = mask[row[seen], col[seen]]
-        inside &= smoke  # a voxel outside a view's image cannot be confirmed as smoke: it is carved
-    return Hull(pts[inside], voxel)
+    xs, ys, zs = hull_grid(volume, voxel)
+    masks = [image.max(axis=2) > threshold for image in images]
+    planes = max(1, CHUNK_POINTS // max(1, len(ys) * len(zs)))
+    kept = [np.zeros((0, 3))]
+    for i in range(0, len(xs), planes):
+        pts = np.stack(np.meshgrid(xs[i:i + planes], ys, zs, indexing="ij"), -1).reshape(-1, 3)
+        inside = np.ones(len(pts), bool)
+        for cam, mask in zip(cameras, masks):
+            uv, depth = cam.project(pts)
+            col, row = np.floor(uv[:, 0]).astype(int), np.floor(uv[:, 1]).astype(int)
+            seen = (depth > 0) & (col >= 0) & (col < cam.width) & (row >= 0) & (row < cam.height)
+            smoke = np.zeros(len(pts), bool)
+            smoke[seen] = mask[row[seen], col[seen]]
+            inside &= smoke  # a voxel outside a view's image cannot be confirmed as smoke: it is carved
+        kept.append(pts[inside])
+    return Hull(np.concatenate(kept), voxel)
 
 
 def source_from_hull(hull: Hull, fallback: Source, slab: float = 0.01, min_points: int = 8) -> Source:

@@ -17,6 +17,9 @@ from .smoke import Smoke
 from .workspace import Workspace
 
 
+SOURCE_DEPTH = 0.02  # the initial physical cylinder starts this far below the source (metres at ScalarFlow's scale)
+
+
 def physical_source(source: Source, cfg: ReconConfig) -> SourceDisk:
     """The physical emitter: ``physical_emit_spacing`` on a disk of ``physical_emit_radius`` at the source."""
     return SourceDisk(center=tuple(source.center), radius=cfg.physical_emit_radius,
@@ -43,7 +46,8 @@ def initial_smoke(source: Source, visual: np.ndarray, cfg: ReconConfig, ws: Work
     ``visual`` [M, 3] with the constant initial appearance, at ``frame``."""
     dtype, dt = ws.dtype, ws.dt
     cx, cy, cz = source.center
-    lattice = cylinder_lattice((cx, cz), cfg.physical_radius, cy - 0.02, cy - 0.02 + cfg.physical_height,
+    below = SOURCE_DEPTH * cfg.length_scale
+    lattice = cylinder_lattice((cx, cz), cfg.physical_radius, cy - below, cy - below + cfg.physical_height,
                                cfg.physical_spacing)
     empty = torch.zeros((0, 3), dtype=dtype)
     smoke = Smoke(frame, empty, empty, torch.zeros(0, dtype=dtype), empty, torch.zeros((0, cfg.channels), dtype=dtype),

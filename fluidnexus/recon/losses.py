@@ -8,7 +8,6 @@ from __future__ import annotations
 import torch
 
 from ..metrics import ssim
-from .config import LENGTH_UNIT
 
 
 def image_loss(pred: torch.Tensor, target: torch.Tensor, w_l1: float = 0.8, w_dssim: float = 0.2) -> torch.Tensor:
@@ -19,9 +18,10 @@ def image_loss(pred: torch.Tensor, target: torch.Tensor, w_l1: float = 0.8, w_ds
     return loss
 
 
-def simulation_loss(p: torch.Tensor, p_sim: torch.Tensor) -> torch.Tensor:
-    """L_sim = mean |p_t - p_sim|^2 measured in release units (``LENGTH_UNIT`` metres), FluidNexus Eq. 3."""
-    return (((p - p_sim) / LENGTH_UNIT) ** 2).sum(dim=1).mean()
+def simulation_loss(p: torch.Tensor, p_sim: torch.Tensor, unit: float) -> torch.Tensor:
+    """L_sim = mean |p_t - p_sim|^2 measured in ``unit`` metres (the release's 1 cm at ScalarFlow's scale,
+    ``ReconConfig.loss_unit``), FluidNexus Eq. 3."""
+    return (((p - p_sim) / unit) ** 2).sum(dim=1).mean()
 
 
 def density_loss(rho: torch.Tensor, rest_density: float) -> torch.Tensor:
@@ -31,18 +31,19 @@ def density_loss(rho: torch.Tensor, rest_density: float) -> torch.Tensor:
     return ((rho / rest_density - 1.0) ** 2).mean()
 
 
-def spacing_loss(x: torch.Tensor, pairs: torch.Tensor, sigma: float) -> torch.Tensor:
+def spacing_loss(x: torch.Tensor, pairs: torch.Tensor, sigma: float, unit: float) -> torch.Tensor:
     """sum over visual pairs of max(0, sigma - |x_i - x_j|)^2 (FluidNexus Eq. 4, third term).
 
     Args:
         x: [M, 3] visual positions (m). pairs: [P, 2] index pairs i < j closer than ``sigma`` at build time.
         sigma: the minimum distance (m). The paper writes the squared distance; we compare distances so that
-            sigma is a length. Measured in release units (``LENGTH_UNIT``) as the release's weight assumes.
+            sigma is a length. Measured in ``unit`` metres (release units at ScalarFlow's scale,
+            ``ReconConfig.loss_unit``) as the release's weight assumes.
     """
     if pairs.numel() == 0:
         return x.sum() * 0.0
     d = (x[pairs[:, 0]] - x[pairs[:, 1]]).norm(dim=1)
-    return ((torch.clamp(sigma - d, min=0.0) / LENGTH_UNIT) ** 2).sum()
+    return ((torch.clamp(sigma - d, min=0.0) / unit) ** 2).sum()
 
 
 def temporal_loss(current: torch.Tensor, previous: torch.Tensor) -> torch.Tensor:

@@ -23,13 +23,14 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from .. import engine
+from .. import engine, memory
 from ..atomic import read_json, write_json
 from ..engine import ModelConfig, SolverConfig
 from ..errors import InputError, RunError
 from ..progress import progress
 from ..runs import RUN_FORMAT
 from ..scene import SCENE_FILE, Scene, Source
+from ..scene_scale import SCALARFLOW_SOURCE_RADIUS, scaled_solver, scene_factor
 from ..state import frame_path, load_frame, save_frame
 from .config import ReconConfig, differing_keys
 from .fit import Views, fit_appearance, fit_dynamics, fit_positions
@@ -57,8 +58,10 @@ class RunSetup:
 
 
 def default_setup(scene: Scene, config: ReconConfig, model: ModelConfig | None = None) -> RunSetup:
-    """Settings for ``scene``: the solver's time step is one frame (1 / fps)."""
-    return RunSetup(config, SolverConfig(dt=1.0 / scene.fps), model or ModelConfig.scalarflow())
+    """Settings for ``scene``: the solver's time step is one frame (1 / fps), its lengths follow the config's
+    length scale (``scene_scale.scaled_solver``)."""
+    solver = scaled_solver(SolverConfig(dt=1.0 / scene.fps), config.length_scale)
+    return RunSetup(config, solver, model or ModelConfig.scalarflow())
 
 
 def scene_source(scene: Scene) -> Source:
@@ -66,7 +69,8 @@ def scene_source(scene: Scene) -> Source:
     if scene.source is not None:
         return scene.source
     if scene.volume is not None:
-        return Source(tuple(float(v) for v in scene.volume.bottom_center), 0.025)
+        return Source(tuple(float(v) for v in scene.volume.bottom_center),
+                      SCALARFLOW_SOURCE_RADIUS * scene_factor(scene))
     raise InputError(scene.root / SCENE_FILE, "source", "the scene has neither a source nor a volume")
 
 
@@ -86,7 +90,7 @@ def locate_smoke(scene: Scene, obs, cfg: ReconConfig) -> tuple[Source, np.ndarra
     hull_points = np.zeros((0, 3))
     if scene.volume is not None:
         hull = visual_hull(obs.cameras, obs.frame(obs.first), scene.volume, cfg.visual_spacing)
-        fallback = source_from_hull(hull, fallback)
+        fallback = source_from_hull(hull, fallback, slab=0.01 * cfg.length_scale)
         hull_points = hull.points
     return fallback, initial_visual(fallback, hull_points, cfg)
 
@@ -109,8 +113,7 @@ def _prepare_folder(out: Path, scene: Scene, setup: RunSetup, frames: tuple[int,
         while first in done:
             first += 1
         return first
-    if out.exists() and any(out.iterdir()):
-        raise InputError(out, None, "already exists and is not empty (use --resume to continue it, or another --out)")
+    _refuse_occupied(out)
     (out / "frames").mkdir(parents=True, exist_ok=True)
     (out / "logs").mkdir(exist_ok=True)
     write_json(out / "run.json", {"format": RUN_FORMAT, "kind": "recon", "scene": str(scene.root.resolve()),
@@ -119,11 +122,21 @@ def _prepare_folder(out: Path, scene: Scene, setup: RunSetup, frames: tuple[int,
     return frames[0]
 
 
-def reconstruct(scene: Scene, out: str | Path, setup: RunSetup, resume: bool = False) -> dict:
+def _refuse_occupied(out: Path) -> None:
+    if out.exists() and any(out.iterdir()):
+        raise InputError(out, None, "already exists and is not empty (use --resume to continue it, or another --out)")
+
+
+def reconstruct(scene: Scene, out: str | Path, setup: RunSetup, resume: bool = False,
+                max_memory: int | None = None) -> dict:
     """Reconstruct the smoke of ``scene`` into the run folder ``out``; return the summary.
 
+    Before it reads a video or writes a file, and again once the first frame's hull is known, the run's memory
+    is estimated (``fluidnexus.memory``) and refused over ``max_memory`` bytes (None: the default limit).
+
     Raises:
-        InputError: bad settings, no usable view, a frame range outside the videos, a mismatched --resume.
+        InputError: bad settings, no usable view, a frame range outside the videos, a mismatched --resume,
+            an estimated memory over the limit.
         RunError: the optimisation diverged or a frame could not be written; the last good frame is kept.
     """
     out = Path(out)
@@ -131,9 +144,14 @@ def reconstruct(scene: Scene, out: str | Path, setup: RunSetup, resume: bool = F
     frames = resolve_frames(scene, cfg.frames)
     setup = replace(setup, config=replace(cfg, frames=frames))
     cfg = setup.config
-    first = _prepare_folder(out, scene, setup, frames, resume)
+    limit = memory.parse_limit(None) if max_memory is None else max_memory
+    memory.check(memory.recon_estimate(scene, setup, frames, 0), limit)
+    if not resume:
+        _refuse_occupied(out)
     obs = load_observations(scene, frames, cfg.resolution, cfg.channels)
     source, seeds = locate_smoke(scene, obs, cfg)
+    log.info("%s", memory.check(memory.recon_estimate(scene, setup, frames, len(seeds)), limit).describe())
+    first = _prepare_folder(out, scene, setup, frames, resume)
     if first == frames[0]:  # predict/interact read the inflow from run.json, also of an unfinished run
         write_json(out / "run.json", {**read_json(out / "run.json"), "source": source.to_dict()})
     ws = Workspace(*capacities(frames[1] - frames[0], setup, source, len(seeds)), setup.solver, setup.model)
