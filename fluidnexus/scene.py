@@ -84,6 +84,21 @@ class GroundTruth:
 
 
 @dataclass(frozen=True)
+class Background:
+    """A view's clean plate (``fluidnexus background``): the backdrop image and its per-pixel confidence, both
+    PNG files of the camera's size relative to the scene folder, with the source it came from."""
+
+    view: str
+    plate: str
+    confidence: str
+    source: str
+    summary: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {"plate": self.plate, "confidence": self.confidence, "source": self.source, "summary": self.summary}
+
+
+@dataclass(frozen=True)
 class Scene:
     """What the pipeline may see of a scene: fps, frame count, bounds, source and the input/novel views."""
 
@@ -94,6 +109,7 @@ class Scene:
     volume: Volume | None = None
     source: Source | None = None
     extra: dict = field(default_factory=dict)
+    backgrounds: dict[str, Background] = field(default_factory=dict)
 
     def view(self, name: str) -> View:
         for v in self.views:
@@ -172,13 +188,55 @@ def _parse_views(items, path, key: str) -> list[dict]:
     return items
 
 
+BACKGROUND_SOURCES = ("plate", "clean-frames", "color", "temporal")
+
+
+def _parse_backgrounds(data, views: list[View], root: Path, path: Path, check_files: bool) -> dict[str, Background]:
+    """The ``backgrounds`` record: plates of known views; with ``check_files`` every PNG exists and has its
+    camera's size."""
+    if data is None:
+        return {}
+    if not isinstance(data, dict) or not isinstance(data.get("views", {}), dict):
+        raise InputError(path, "backgrounds", "expected {views: {NAME: {plate, confidence, source}}}")
+    cameras = {v.name: v.camera for v in views}
+    out = {}
+    for name, item in data.get("views", {}).items():
+        fld = f"backgrounds.views.{name}"
+        if name not in cameras:
+            raise InputError(path, fld, f"a plate for unknown view {name!r}; known: {sorted(cameras)}")
+        if not isinstance(item, dict) or not all(isinstance(item.get(k), str) for k in ("plate", "confidence")):
+            raise InputError(path, fld, "expected {plate: FILE, confidence: FILE, source: ...}")
+        if item.get("source") not in BACKGROUND_SOURCES:
+            raise InputError(path, f"{fld}.source",
+                             f"must be one of {BACKGROUND_SOURCES}, got {item.get('source')!r}")
+        cam = cameras[name]
+        for key in ("plate", "confidence") if check_files else ():
+            size = png_size(root / item[key])
+            if size != (cam.width, cam.height):
+                raise InputError(root / item[key], f"{fld}.{key}", f"is {size[0]}x{size[1]}, but view {name!r}'s "
+                                                                   f"camera is {cam.width}x{cam.height}")
+        out[name] = Background(name, item["plate"], item["confidence"], item["source"], item.get("summary", {}))
+    return out
+
+
+def png_size(path: Path) -> tuple[int, int]:
+    """(width, height) from a PNG file's header, without decoding it."""
+    try:
+        head = Path(path).read_bytes()[:24]
+    except OSError:
+        raise InputError(path, None, "file not found or unreadable") from None
+    if len(head) < 24 or head[:8] != b"\x89PNG\r\n\x1a\n":
+        raise InputError(path, None, "not a PNG file")
+    return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+
+
 def load_scene(path: str | Path, check_videos: bool = True) -> Scene:
     """Load the pipeline's view of a scene (no ground truth).
 
     Args:
         path: the scene folder or its scene.json.
         check_videos: probe every video and require the scene's frame count and one shared resolution that
-            matches the cameras.
+            matches the cameras; check that every background plate exists and has its camera's size.
     Raises:
         InputError naming scene.json (or a video) and the field.
     """
@@ -201,7 +259,8 @@ def load_scene(path: str | Path, check_videos: bool = True) -> Scene:
     if not views:
         raise InputError(scene_file, "views", "the scene has no views")
     scene = Scene(root, fps, frame_count, tuple(views), _parse_volume(data.get("volume"), scene_file),
-                  _parse_source(data.get("source"), scene_file), data.get("extra", {}))
+                  _parse_source(data.get("source"), scene_file), data.get("extra", {}),
+                  _parse_backgrounds(data.get("backgrounds"), views, root, scene_file, check_videos))
     if check_videos:
         check_media(root, scene_file, frame_count,
                     [(f"views[{i}].video", v.video, v.camera) for i, v in enumerate(views) if v.video])
@@ -262,6 +321,8 @@ def scene_dict(scene: Scene, ground_truth: tuple[GroundTruth, ...] = ()) -> dict
     out["ground_truth"] = [g.to_dict() for g in ground_truth]
     if scene.extra:
         out["extra"] = scene.extra
+    if scene.backgrounds:
+        out["backgrounds"] = {"views": {name: b.to_dict() for name, b in scene.backgrounds.items()}}
     return out
 
 

@@ -1,0 +1,245 @@
+"""Clean-plate estimators: the static backdrop of a fixed camera from its own footage.
+
+A video is [T, H, W, 3] float32 in [0, 1] (docs/conventions.md). Every estimator returns a :class:`PlateEstimate`:
+the plate [H, W, 3], a confidence [H, W] in [0, 1] and the name of the source used. :func:`estimate_plate` tries
+the sources in order:
+
+1. ``clean-frames``: the leading frames before the first significant change, if they agree with the backdrop the
+   rest of the video shows (the per-pixel median of those frames).
+2. ``color``: a known backdrop colour (PINF's ``frame_bkg_color``, ``--color``), kept wherever the pixel shows that
+   colour at a quiet moment; elsewhere (static objects in front of the backdrop) the temporal estimate.
+3. ``temporal``: per pixel, the mode of the values at quiet moments (Okabe, Anjyo, Onai 2011, "Extracting fluid
+   from a video for efficient post-production": the background is seen where a pixel shows little temporal
+   change). The mode is symmetric in brightness, so smoke brighter or darker than the backdrop is the same case.
+
+Nothing here assumes bright smoke on a dark backdrop or the reverse; thresholds follow the video's own noise.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+MIN_CHANGE = 0.02  # smallest temporal change (per channel, [0, 1] units) ever counted as motion
+MIN_DIFFERENCE = 0.05  # smallest colour difference ever counted as "not the backdrop"
+NOISE_FACTOR = 3.0  # thresholds are at least this many times the video's frame-to-frame noise
+MAX_NOISE = 0.015  # about 4 levels of 8-bit footage: larger typical changes are motion, not noise
+MODE_BINS = 32  # brightness histogram bins for the per-pixel mode
+MEAN_SHIFT_STEPS = 3
+FULL_SUPPORT = 0.2  # a pixel seen quiet and consistent in this share of the frames is fully confident
+MIN_SAMPLES = 3  # ... and in at least this many frames
+CONFIDENT = 0.5  # confidence from which a pixel counts as "seen"
+MIN_SEEN_FRACTION = 0.01  # below this share of seen pixels a view has no usable temporal estimate
+CHANGED_FRACTION = 0.002  # a frame with this share of pixels changed from frame 0 ends the clean prefix
+MAX_DISAGREEMENT = 0.02  # clean frames may disagree with the seen backdrop at this share of its pixels
+
+
+@dataclass(frozen=True)
+class PlateEstimate:
+    """A view's backdrop.
+
+    Attributes:
+        plate: [H, W, 3] float32 in [0, 1].
+        confidence: [H, W] float32 in [0, 1]: 1 where the backdrop is known (given, seen clean), low where the
+            pixel was never seen unoccluded.
+        source: ``plate``, ``clean-frames``, ``color`` or ``temporal``.
+        detail: facts about the estimate for the scene record (e.g. the clean frame range).
+    """
+
+    plate: np.ndarray
+    confidence: np.ndarray
+    source: str
+    detail: dict = field(default_factory=dict)
+
+    def summary(self) -> dict:
+        """Confidence statistics and the estimate's facts, for scene.json."""
+        return {"mean_confidence": round(float(self.confidence.mean()), 4),
+                "seen_fraction": round(float((self.confidence >= CONFIDENT).mean()), 4), **self.detail}
+
+    def resized(self, width: int, height: int) -> "PlateEstimate":
+        if self.plate.shape[:2] == (height, width):
+            return self
+        plate = cv2.resize(self.plate, (width, height), interpolation=cv2.INTER_LINEAR)
+        conf = cv2.resize(self.confidence, (width, height), interpolation=cv2.INTER_LINEAR)
+        return PlateEstimate(np.clip(plate, 0, 1), np.clip(conf, 0, 1), self.source, self.detail)
+
+
+class NeverClear(Exception):
+    """No pixel of the video is quiet and consistent often enough to show its backdrop."""
+
+
+# ---- the sources, in order -------------------------------------------------------------------------------
+def estimate_plate(video: np.ndarray, color: np.ndarray | None = None) -> PlateEstimate:
+    """The backdrop of one fixed camera's video: clean frames, else a known colour, else the temporal mode.
+
+    Args:
+        video: [T, H, W, 3] float32 in [0, 1].
+        color: [3] the known backdrop colour in [0, 1], or None.
+
+    Raises:
+        NeverClear: no clean frames, no colour, and the smoke never leaves any pixel (too few seen pixels).
+    """
+    noise = noise_level(video)
+    quiet = quiet_mask(video, noise)
+    temporal = temporal_mode(video, quiet, noise)
+    first_change = clean_prefix(video, noise)
+    if _agrees(np.median(video[:first_change], axis=0), temporal, noise):
+        return clean_frames(video[:first_change], noise)
+    if color is not None:
+        return color_plate(video, quiet, temporal, np.asarray(color, np.float32), noise)
+    if float((temporal.confidence >= CONFIDENT).mean()) < MIN_SEEN_FRACTION:
+        raise NeverClear(f"{(temporal.confidence >= CONFIDENT).mean():.2%} of the pixels are ever seen clear")
+    return temporal
+
+
+def clean_frames(frames: np.ndarray, noise: float | None = None) -> PlateEstimate:
+    """The per-pixel median of frames known to show no smoke; confidence 1 where they agree with it."""
+    noise = noise_level(frames) if noise is None else noise
+    plate = np.median(frames, axis=0).astype(np.float32)
+    spread = np.abs(frames - plate).max(axis=3).mean(axis=0)
+    conf = (spread < _difference(noise)).astype(np.float32)
+    return PlateEstimate(plate, conf, "clean-frames", {"clean_frames": [0, len(frames)]})
+
+
+def color_plate(video: np.ndarray, quiet: np.ndarray, temporal: PlateEstimate, color: np.ndarray,
+                noise: float) -> PlateEstimate:
+    """A known backdrop colour where the pixel shows it at quiet moments; the temporal mode where it never does
+    but is confidently something else (a static object); the colour, with the temporal confidence, elsewhere."""
+    tol = _difference(noise)
+    shown = np.zeros(video.shape[1:3], np.int32)
+    for t in range(len(video)):
+        shown += quiet[t] & (np.abs(video[t] - color).max(axis=2) < tol)
+    seen_color = shown >= max(2, round(0.02 * len(video)))
+    obj = ~seen_color & (temporal.confidence >= CONFIDENT)
+    plate = np.where(obj[..., None], temporal.plate, color[None, None, :]).astype(np.float32)
+    conf = np.where(seen_color, 1.0, temporal.confidence).astype(np.float32)
+    detail = {"color": [round(float(c), 6) for c in color], "object_fraction": round(float(obj.mean()), 4)}
+    return PlateEstimate(plate, conf, "color", detail)
+
+
+def temporal_mode(video: np.ndarray, quiet: np.ndarray, noise: float) -> PlateEstimate:
+    """Per pixel, the mode of the values at quiet moments (a brightness histogram's peak, refined by a few
+    mean-shift steps in RGB); confidence = support x agreement, where support is the share of frames in the
+    mode (full at ``FULL_SUPPORT`` of the frames, at least ``MIN_SAMPLES``) and agreement the share of the quiet
+    samples that lie in it. Pixels never quiet are filled from their neighbours with confidence 0."""
+    t_count = len(video)
+    bins = _mode_bins(video, quiet)
+    centre = _masked_mean(video, lambda t: quiet[t] & (np.abs(_brightness_bin(video[t]) - bins) <= 1))
+    radius = _difference(noise)
+    for _ in range(MEAN_SHIFT_STEPS):
+        centre = _masked_mean(video, lambda t: quiet[t] & (np.abs(video[t] - centre).max(axis=2) < radius),
+                              fallback=centre)
+    in_mode = np.zeros(video.shape[1:3], np.float32)
+    for t in range(t_count):
+        in_mode += quiet[t] & (np.abs(video[t] - centre).max(axis=2) < radius)
+    n_quiet = quiet.sum(axis=0).astype(np.float32)
+    support = np.clip(in_mode / max(MIN_SAMPLES, FULL_SUPPORT * t_count), 0, 1)
+    agreement = np.where(n_quiet > 0, in_mode / np.maximum(n_quiet, 1), 0)
+    conf = (support * agreement).astype(np.float32)
+    plate = fill_unseen(np.nan_to_num(centre), in_mode > 0, np.median(video, axis=0))
+    return PlateEstimate(plate, conf, "temporal", {"frames": t_count})
+
+
+# ---- helpers ---------------------------------------------------------------------------------------------
+def noise_level(video: np.ndarray) -> float:
+    """The typical frame-to-frame change of a still pixel (codec and sensor noise): the 20th percentile over
+    pixels and frames of the largest channel's absolute difference, times 1.5 (for pure Gaussian noise that is
+    about its median), at most ``MAX_NOISE``. A low percentile stays a noise measure while smoke moves over most
+    of the frame; the cap keeps footage whose every pixel moves from calling its motion noise."""
+    if len(video) < 2:
+        return 0.0
+    step = max(1, int(np.sqrt(video.shape[1] * video.shape[2] / 20000)))  # about 20k pixels suffice
+    sub = video[:, ::step, ::step]
+    return min(MAX_NOISE, 1.5 * float(np.percentile(np.abs(np.diff(sub, axis=0)).max(axis=3), 20)))
+
+
+def quiet_mask(video: np.ndarray, noise: float) -> np.ndarray:
+    """[T, H, W] bool: the pixel changes less than the motion threshold from the previous and to the next frame,
+    and so do its 8 neighbours (a smoke front's interior next to its moving edge is not taken as still)."""
+    t_count = len(video)
+    if t_count < 2:
+        return np.ones(video.shape[:3], bool)
+    change = np.abs(np.diff(video, axis=0)).max(axis=3)  # [T-1, H, W]
+    kernel = np.ones((3, 3), np.uint8)
+    threshold = max(MIN_CHANGE, NOISE_FACTOR * noise)
+    out = np.empty(video.shape[:3], bool)
+    for t in range(t_count):
+        g = np.maximum(change[max(t - 1, 0)], change[min(t, t_count - 2)])
+        out[t] = cv2.dilate(g, kernel) < threshold
+    return out
+
+
+def clean_prefix(video: np.ndarray, noise: float) -> int:
+    """Number of leading frames before the first significant change: the first frame in which more than
+    ``CHANGED_FRACTION`` of the pixels differ from frame 0 by more than the difference threshold (at least 1;
+    T: the video never changes). Whether those frames are clean is for the caller to check."""
+    tol = _difference(noise)
+    for t in range(1, len(video)):
+        if float((np.abs(video[t] - video[0]).max(axis=2) > tol).mean()) > CHANGED_FRACTION:
+            return t
+    return len(video)
+
+
+def fill_unseen(plate: np.ndarray, seen: np.ndarray, fallback: np.ndarray) -> np.ndarray:
+    """Fill pixels not ``seen`` from seen neighbours (normalised Gaussian blurs of growing width); where none is
+    near, ``fallback``."""
+    out = plate.copy()
+    todo = ~seen
+    weight = seen.astype(np.float32)
+    sigma = 2.0
+    while todo.any() and sigma < 4 * max(plate.shape[:2]):
+        den = cv2.GaussianBlur(weight, (0, 0), sigma)
+        num = cv2.GaussianBlur(plate * weight[..., None], (0, 0), sigma)
+        ok = todo & (den > 1e-3)
+        out[ok] = num[ok] / den[ok][:, None]
+        todo &= ~ok
+        sigma *= 2
+    out[todo] = fallback[todo]
+    return out.astype(np.float32)
+
+
+def _agrees(prefix: np.ndarray, temporal: PlateEstimate, noise: float) -> bool:
+    """Clean frames must match the backdrop the rest of the video shows wherever that backdrop is seen."""
+    seen = temporal.confidence >= CONFIDENT
+    if seen.mean() < MIN_SEEN_FRACTION:
+        return False
+    differs = np.abs(prefix - temporal.plate).max(axis=2) >= _difference(noise)
+    return float(differs[seen].mean()) <= MAX_DISAGREEMENT
+
+
+def _difference(noise: float) -> float:
+    return max(MIN_DIFFERENCE, 2 * NOISE_FACTOR * noise)
+
+
+def _brightness_bin(frame: np.ndarray) -> np.ndarray:
+    return np.minimum((frame.mean(axis=2) * MODE_BINS).astype(np.int32), MODE_BINS - 1)
+
+
+def _mode_bins(video: np.ndarray, quiet: np.ndarray) -> np.ndarray:
+    """[H, W] the brightness bin holding most quiet samples (histogram smoothed with 1-2-1)."""
+    h, w = video.shape[1:3]
+    pixels = np.arange(h * w)
+    counts = np.zeros(MODE_BINS * h * w, np.float32)
+    for t in range(len(video)):
+        counts += np.bincount(_brightness_bin(video[t]).ravel() * h * w + pixels, weights=quiet[t].ravel(),
+                              minlength=MODE_BINS * h * w).astype(np.float32)
+    counts = counts.reshape(MODE_BINS, h, w)
+    padded = np.pad(counts, ((1, 1), (0, 0), (0, 0)))
+    smooth = padded[:-2] + 2 * padded[1:-1] + padded[2:]
+    return smooth.argmax(axis=0)
+
+
+def _masked_mean(video: np.ndarray, mask_at, fallback: np.ndarray | None = None) -> np.ndarray:
+    """[H, W, 3] mean over frames of ``video[t]`` where ``mask_at(t)``; NaN (or ``fallback``) where never."""
+    acc = np.zeros(video.shape[1:], np.float64)
+    cnt = np.zeros(video.shape[1:3], np.float64)
+    for t in range(len(video)):
+        m = mask_at(t)
+        acc += video[t] * m[..., None]
+        cnt += m
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = (acc / cnt[..., None]).astype(np.float32)
+    if fallback is not None:
+        mean = np.where(cnt[..., None] > 0, mean, fallback)
+    return mean

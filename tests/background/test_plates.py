@@ -1,0 +1,64 @@
+"""The plate estimators on synthetic footage with a known backdrop (arrays, no codec)."""
+import numpy as np
+import pytest
+
+from fluidnexus.background.plates import NeverClear, estimate_plate
+
+from .scenes import backdrop, composite, psnr, smoke_alpha
+
+TEMPORAL_PSNR = 35.0  # dB; measured 45-46 dB on these scenes (docs/background.md)
+
+
+def footage(kind, clean=0, cover=False, seed=3):
+    back = backdrop(seed, kind)
+    alpha = smoke_alpha(seed, clean=clean, cover=cover)
+    noise = np.random.default_rng(seed).normal(0, 0.004, alpha.shape + (3,)).astype(np.float32)
+    return back, alpha, np.clip(composite(back, alpha, kind) + noise, 0, 1)
+
+
+@pytest.mark.parametrize("kind", ["dark", "bright"])  # dark smoke on a bright backdrop, and the reverse
+def test_temporal_estimate_recovers_the_backdrop(kind):
+    back, alpha, video = footage(kind)
+    covered = (alpha > 0.05).mean(axis=0)
+    assert covered.min() > 0 and covered.max() < 1  # every pixel is covered at some moment, none all the time
+    assert (alpha[0] > 0.05).mean() > 0.1  # smoke from frame 0: no clean frame exists
+    est = estimate_plate(video)
+    assert est.source == "temporal"
+    assert psnr(est.plate, back) > TEMPORAL_PSNR
+    assert psnr(np.median(video, axis=0), back) < TEMPORAL_PSNR - 5  # a plain median is not good enough
+    assert (est.confidence >= 0.5).mean() > 0.95
+
+
+@pytest.mark.parametrize("kind", ["dark", "bright"])
+def test_frames_before_the_smoke_are_found_and_used(kind):
+    back, _, video = footage(kind, clean=8)
+    est = estimate_plate(video)
+    assert est.source == "clean-frames"
+    assert est.detail["clean_frames"] == [0, 8]
+    np.testing.assert_allclose(est.plate, np.median(video[:8], axis=0), atol=1e-6)
+    assert psnr(est.plate, back) > 45
+
+
+def test_known_color_keeps_static_objects():
+    """A flat backdrop of a known colour with a static object in front of it: the colour where the backdrop
+    shows, the object where it stands."""
+    color = np.array([0.9, 0.9, 0.85], np.float32)
+    back = np.broadcast_to(color, (48, 64, 3)).copy()
+    back[10:25, 20:40] = (0.7, 0.2, 0.2)
+    alpha = smoke_alpha(3)
+    video = composite(back, alpha, "dark")
+    est = estimate_plate(video, color)
+    assert est.source == "color"
+    sure = est.confidence >= 0.5
+    assert sure.mean() > 0.95
+    assert np.abs(est.plate - back).max(axis=2)[sure].max() < 0.03
+    outside = np.ones((48, 64), bool)
+    outside[8:27, 18:42] = False
+    assert np.array_equal(est.plate[outside & sure], np.broadcast_to(color, back.shape)[outside & sure])
+
+
+def test_smoke_that_never_leaves_is_refused():
+    _, _, video = footage("bright", cover=True)
+    with pytest.raises(NeverClear):
+        estimate_plate(video)
+    assert estimate_plate(video, np.array([0.2, 0.2, 0.2], np.float32)).source == "color"  # a colour resolves it
