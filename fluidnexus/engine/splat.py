@@ -5,6 +5,10 @@
 ``torch.autograd.Function``: the forward runs the Taichi kernels and the backward runs their ``ti.ad`` adjoints
 (the hand-written ``rasterize.grad`` then the automatic ``project_gaussians.grad``), so an image loss
 back-propagates through torch into whatever produced the Gaussians (for instance the simulator's bridge).
+
+The Gaussians are composited over a background: one colour, or one image per camera (a clean plate). A second,
+static set of Gaussians (``static=``) joins the smoke in the same depth sort, so static objects hide the smoke
+behind them and the smoke in front of them hides them.
 """
 from __future__ import annotations
 
@@ -15,6 +19,7 @@ import torch
 
 from .splat_bin import count_tiles, fill_tiles
 from .splat_buffers import clear_gaussian_grads, clear_scalar_grads, splat_fields
+from .splat_gaussians import Gaussians
 from .splat_project import DEFAULT_NEAR, bound_footprints, pack_camera, project_gaussians
 from .splat_raster import rasterize
 from .tensors import load, store, torch_device, torch_dtype
@@ -29,6 +34,8 @@ class _Frame:
     """What one forward leaves for its backward: the image layout, tile lists and per-pixel state.
 
     ``first`` and ``slots`` list each Gaussian's tile entries (``splat_bin.fill_tiles``) for the backward.
+    ``background`` is the flat, detached background the kernels read: [C] when ``background_stride`` is 0 (one
+    colour), [H * W * C] when it is C (one colour per pixel).
     """
 
     token: int
@@ -41,6 +48,8 @@ class _Frame:
     tiles_x: int
     n_tiles: int
     camera_packed: torch.Tensor
+    background: torch.Tensor
+    background_stride: int
     start: torch.Tensor
     lists: torch.Tensor
     rect: torch.Tensor
@@ -51,7 +60,8 @@ class _Frame:
     slots: torch.Tensor
 
     def raster_args(self, fields):
-        return (fields.gauss, fields.pixels, fields.background, self.channels, self.with_depth, self.tile,
+        return (fields.gauss, fields.pixels, self.background, self.background_stride, self.channels,
+                self.with_depth, self.tile,
                 self.width, self.height, self.tiles_x, self.n_tiles, self.start, self.lists, self.rect, self.power_min,
                 self.t_final, self.last, self.n, self.first, self.slots)
 
@@ -63,11 +73,11 @@ def _rows(t: torch.Tensor) -> torch.Tensor:
     return t.contiguous()
 
 
-def _load_inputs(fields, frame: _Frame, means, scales, quats, opacities, colors, background) -> None:
-    """Copy the inputs and the camera into the Taichi fields and project the Gaussians."""
+def _load_inputs(fields, frame: _Frame, means, scales, quats, opacities, colors) -> None:
+    """Copy the Gaussians and the camera into the Taichi fields and project the Gaussians."""
     g = fields.gauss
     for field, values in ((g.means, means), (g.scales, scales), (g.quats, quats), (g.opacities, opacities),
-                          (g.colors, colors), (fields.background, background), (fields.camera, frame.camera_packed)):
+                          (g.colors, colors), (fields.camera, frame.camera_packed)):
         load(field, values)
     project_gaussians(g, fields.camera, frame.n)
     fields.owner = frame.token
@@ -97,8 +107,9 @@ def prepare_frame(camera, means, scales, quats, opacities, colors, background, n
                   with_depth: bool):
     """Everything before compositing: load the inputs into the fields, project, cull and bin.
 
-    Tensors must already be in the engine's dtype and device. Returns the fields and the :class:`_Frame`, whose
-    ``raster_args(fields)`` are the arguments of ``splat_raster.rasterize``.
+    Tensors must already be in the engine's dtype and device; ``background`` is [C] (one colour) or [H, W, C]
+    (one per pixel). Returns the fields and the :class:`_Frame`, whose ``raster_args(fields)`` are the arguments
+    of ``splat_raster.rasterize``.
     """
     n, channels = means.shape[0], colors.shape[1]
     width, height = camera.width, camera.height
@@ -106,12 +117,14 @@ def prepare_frame(camera, means, scales, quats, opacities, colors, background, n
     dtype, dev = means.dtype, means.device
     frame = _Frame(next(_tokens), n, channels, with_depth, width, height, tile, tiles_x, tiles_x * tiles_y,
                    torch.as_tensor(pack_camera(camera, near), dtype=dtype, device=dev),
+                   background=background.detach().reshape(-1).contiguous(),
+                   background_stride=channels if background.dim() == 3 else 0,
                    start=None, lists=None, rect=None, power_min=None,
                    t_final=torch.empty(width * height, dtype=dtype, device=dev),
                    last=torch.empty(width * height, dtype=torch.int32, device=dev), first=None, slots=None)
     fields = splat_fields()
     fields.reserve(n, width * height, channels)
-    _load_inputs(fields, frame, means, scales, quats, opacities, colors, background)
+    _load_inputs(fields, frame, means, scales, quats, opacities, colors)
     _bin(fields, frame)
     return fields, frame
 
@@ -148,7 +161,7 @@ class _RenderFunction(torch.autograd.Function):
         fields = splat_fields()
         fields.reserve(frame.n, frame.width * frame.height, frame.channels)
         if fields.owner != frame.token:  # another render ran in between: restore this one's projection
-            _load_inputs(fields, frame, means, scales, quats, opacities, colors, background)
+            _load_inputs(fields, frame, means, scales, quats, opacities, colors)
         g, pix, n, n_pix = fields.gauss, fields.pixels, frame.n, frame.width * frame.height
         clear_gaussian_grads(g, n, frame.channels)
         outputs = [(pix.image, grad_image, n_pix * frame.channels), (pix.alpha, grad_alpha, n_pix)]
@@ -166,8 +179,13 @@ class _RenderFunction(torch.autograd.Function):
                                             (g.opacities, opacities, n), (g.colors, colors, n * frame.channels))]
         grad_background = None
         if ctx.needs_input_grad[5] and grad_image is not None:
-            # C = ... + T_N c_bg (Kerbl et al. 2023, Eq. 3 with a background): dL/dc_bg = sum_p T_N(p) dL/dC(p).
-            grad_background = frame.t_final @ grad_image.reshape(-1, frame.channels)
+            # C = ... + T_N B (Kerbl et al. 2023, Eq. 3 with a background B): dL/dB(p) = T_N(p) dL/dC(p) for a
+            # per-pixel B, and dL/dB = sum_p T_N(p) dL/dC(p) for one colour.
+            grad_flat = grad_image.reshape(-1, frame.channels)
+            if frame.background_stride:
+                grad_background = (frame.t_final[:, None] * grad_flat).reshape(background.shape)
+            else:
+                grad_background = frame.t_final @ grad_flat
         return (*grads, grad_background, None, None, None, None)
 
 
@@ -183,11 +201,12 @@ def reserve_gaussians(n: int) -> None:
 
 def render(camera, means: torch.Tensor, scales: torch.Tensor, quats: torch.Tensor, opacities: torch.Tensor,
            colors: torch.Tensor, background: torch.Tensor | None = None, return_depth: bool = False,
-           near: float = DEFAULT_NEAR, tile: int = DEFAULT_TILE):
-    """Render 3D Gaussians seen by ``camera``; differentiable in every tensor argument.
+           near: float = DEFAULT_NEAR, tile: int = DEFAULT_TILE, static: Gaussians | None = None):
+    """Render 3D Gaussians seen by ``camera`` over a background; differentiable in every tensor argument.
 
-    Tensors are converted to the running Taichi precision and device (``fluidnexus.engine.init``); outputs
-    come back in that dtype on the means' device.
+    Each pixel is C = sum_i c_i alpha_i T_i + T_N B(pixel) (Kerbl et al. 2023, Eq. 3, with a background B that
+    may vary per pixel). Tensors are converted to the running Taichi precision and device
+    (``fluidnexus.engine.init``); outputs come back in that dtype on the means' device.
 
     Args:
         camera: a :class:`fluidnexus.camera.Camera` (OpenCV axes; pixel (col, row) is sampled at its centre).
@@ -196,31 +215,38 @@ def render(camera, means: torch.Tensor, scales: torch.Tensor, quats: torch.Tenso
         quats: [N, 4] rotations (w, x, y, z), body to world; normalised inside, must be non-zero.
         opacities: [N] peak opacities in [0, 1].
         colors: [N, C] colours, C = 1 (grayscale) or 3 (RGB) or any C >= 1.
-        background: [C] colour behind the Gaussians (default black).
+        background: what lies behind every Gaussian: [C] one colour, or [H, W, C] one per pixel (this camera's
+            clean plate); default black.
         return_depth: also return the accumulated depth.
         near: near plane in metres; Gaussians with camera z <= near are culled.
         tile: tile edge in pixels.
+        static: a second set of Gaussians (backdrop, obstacles) with the same C, depth sorted together with the
+            smoke in one composite. Its tensors get gradients when they require grad and stay frozen otherwise.
+            Size the renderer for both sets together (``reserve_gaussians(N + len(static))``).
     Returns:
-        image [H, W, C], alpha [H, W] (1 - final transmittance), and depth [H, W] (sum of alpha-weighted
-        camera-space z in metres; divide by alpha for the expected depth) or None.
+        image [H, W, C]; alpha [H, W] = 1 - T_N, the matte of everything drawn (smoke and static), so the
+        background's weight is 1 - alpha; and depth [H, W] (sum of alpha-weighted camera-space z in metres over
+        both sets; divide by alpha for the expected depth) or None.
     """
-    n = means.shape[0]
-    if colors.dim() != 2 or colors.shape[0] != n or colors.shape[1] < 1:
-        raise ValueError(f"colors must be [N, C] with N = {n}, got {tuple(colors.shape)}")
+    smoke = Gaussians(means, scales, quats, opacities, colors)
+    smoke.check()
     channels = colors.shape[1]
-    for name, t, shape in (("means", means, (n, 3)), ("scales", scales, (n, 3)), ("quats", quats, (n, 4)),
-                           ("opacities", opacities, (n,))):
-        if tuple(t.shape) != shape:
-            raise ValueError(f"{name} must have shape {shape}, got {tuple(t.shape)}")
-    if n and bool((quats.detach() == 0).all(dim=1).any()):
-        raise ValueError("quats contains a zero quaternion")
+    if static is not None:
+        static.check("static")
+        if static.colors.shape[1] != channels:
+            raise ValueError(f"static.colors has {static.colors.shape[1]} channels, the smoke's colors {channels}")
     out_device = means.device
     dtype, dev = torch_dtype(), torch_device()
     if background is None:
         background = torch.zeros(channels, dtype=dtype, device=dev)
-    if tuple(background.shape) != (channels,):
-        raise ValueError(f"background must have shape ({channels},), got {tuple(background.shape)}")
-    args = [t.to(device=dev, dtype=dtype) for t in (means, scales, quats, opacities, colors, background)]
-    image, alpha, depth = _RenderFunction.apply(*args, camera, float(near), int(tile), bool(return_depth))
+    if tuple(background.shape) not in ((channels,), (camera.height, camera.width, channels)):
+        raise ValueError(f"background must have shape ({channels},) or (H, W, C) = "
+                         f"({camera.height}, {camera.width}, {channels}), got {tuple(background.shape)}")
+    gaussians = smoke.to(dtype, dev)
+    if static is not None:
+        gaussians = gaussians.union(static.to(dtype, dev))
+    background = background.to(device=dev, dtype=dtype)
+    image, alpha, depth = _RenderFunction.apply(*gaussians.tensors(), background, camera, float(near), int(tile),
+                                                bool(return_depth))
     image, alpha = image.to(out_device), alpha.to(out_device)
     return image, alpha, (depth.to(out_device) if return_depth else None)

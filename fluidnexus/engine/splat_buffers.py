@@ -73,7 +73,6 @@ class SplatFields:
 
     Attributes:
         camera: [CAMERA_SLOTS] real, the packed camera (see ``splat_project.pack_camera``).
-        background: [channels] real.
         gauss: :class:`GaussianFields`. pixels: :class:`PixelFields`.
         owner: an id of the render whose forward state the fields hold (for a backward that comes later).
     """
@@ -82,7 +81,6 @@ class SplatFields:
         self.config = current()
         self.camera = ti.field(real(), shape=CAMERA_SLOTS)
         self.channels = MIN_CHANNELS
-        self.background = ti.field(real(), shape=self.channels)
         self.gauss = GaussianFields(MIN_GAUSSIANS, self.channels)
         self.pixels = PixelFields(MIN_PIXELS, self.channels)
         self.owner = None
@@ -91,7 +89,6 @@ class SplatFields:
         """Grow the fields so that ``n`` Gaussians, ``n_pixels`` pixels and ``channels`` channels fit."""
         if channels > self.channels:
             self.channels = channels
-            self.background = ti.field(real(), shape=channels)
             self.gauss = GaussianFields(self.gauss.cap, channels)
             self.pixels = PixelFields(self.pixels.cap, channels)
             self.owner = None

@@ -1,10 +1,11 @@
 """Front-to-back alpha compositing of the binned 2D Gaussians, with a hand-written backward.
 
-Kerbl et al. 2023, Eq. (3): C = sum_i c_i alpha_i T_i + T_N c_bg with T_i = prod_{j<i} (1 - alpha_j) and
+Kerbl et al. 2023, Eq. (3): C = sum_i c_i alpha_i T_i + T_N B with T_i = prod_{j<i} (1 - alpha_j) and
 alpha_i = min(0.99, o_i exp(power_i)), power_i = -1/2 d^T Sigma'_i^-1 d, d = pixel centre - projected centre.
 As in the 3DGS reference, contributions with alpha < 1/255 are skipped and a pixel stops once its
 transmittance would fall below 1e-4. The outputs are the image, alpha = 1 - T_N and the accumulated depth
-D = sum_i z_i alpha_i T_i (divide by alpha for the expected depth).
+D = sum_i z_i alpha_i T_i (divide by alpha for the expected depth). The background B is one colour or one colour
+per pixel (``bg_stride``, below).
 
 :func:`rasterize` is attached to its backward with ``ti.ad.grad_replaced``/``grad_for``: ``rasterize.grad``
 walks each pixel's contributors back to front (3DGS), recovering T_i = T_{i+1} / (1 - alpha_i), so it needs no
@@ -68,7 +69,8 @@ def row_span(xy, con, floor, row, x0, x1):
 
 
 @ti.kernel
-def composite_forward(g: ti.template(), pix: ti.template(), bg: ti.template(), channels: ti.template(),
+def composite_forward(g: ti.template(), pix: ti.template(), bg: ti.types.ndarray(), bg_stride: ti.template(),
+                      channels: ti.template(),
                       with_depth: ti.template(), tile: ti.i32, width: ti.i32, height: ti.i32, tiles_x: ti.i32,
                       n_tiles: ti.i32,
                       start: ti.types.ndarray(), lists: ti.types.ndarray(), rect: ti.types.ndarray(),
@@ -76,6 +78,8 @@ def composite_forward(g: ti.template(), pix: ti.template(), bg: ti.template(), c
     """Composite every pixel front to back into ``pix``; record its final transmittance and last contributor.
 
     Args:
+        bg: the background, pixel p channel c at ``bg[p * bg_stride + c]``: bg_stride = 0 for one colour [C],
+            bg_stride = C for a per-pixel image [H * W * C] (a compile-time switch).
         with_depth: also composite the depth image (a compile-time switch).
         start: [n_tiles + 1] int32, tile t's entries are lists[start[t]:start[t + 1]].
         lists: [entries] int32 Gaussian indices. rect: [N, 4] int32 footprint pixel rectangles (see
@@ -130,7 +134,7 @@ def composite_forward(g: ti.template(), pix: ti.template(), bg: ti.template(), c
                 if last[p] < -1:
                     last[p] = -3 - last[p]
                 for c in ti.static(range(channels)):
-                    pix.image[p * channels + c] += t_final[p] * bg[c]
+                    pix.image[p * channels + c] += t_final[p] * bg[p * bg_stride + c]
                 pix.alpha[p] = 1.0 - t_final[p]
 
 
@@ -138,7 +142,8 @@ PARTIAL_XY, PARTIAL_CONIC, PARTIAL_OPACITY, PARTIAL_DEPTH, PARTIAL_COLOR = 0, 2,
 
 
 @ti.kernel
-def composite_backward(g: ti.template(), pix: ti.template(), bg: ti.template(), channels: ti.template(),
+def composite_backward(g: ti.template(), pix: ti.template(), bg: ti.types.ndarray(), bg_stride: ti.template(),
+                       channels: ti.template(),
                        with_depth: ti.template(), tile: ti.i32, width: ti.i32, height: ti.i32, tiles_x: ti.i32,
                        n_tiles: ti.i32,
                        start: ti.types.ndarray(), lists: ti.types.ndarray(), rect: ti.types.ndarray(),
@@ -146,7 +151,7 @@ def composite_backward(g: ti.template(), pix: ti.template(), bg: ti.template(), 
                        trans: ti.types.ndarray(), behind: ti.types.ndarray(), partial: ti.types.ndarray()):
     """Adjoint of :func:`composite_forward`, per (Gaussian, tile): dL/d(xy, conic, opacity, depth, colour).
 
-    With S_i = sum_{j>i} c_j alpha_j T_j + T_N c_bg (what lies behind contributor i):
+    With S_i = sum_{j>i} c_j alpha_j T_j + T_N B (what lies behind contributor i, B the pixel's background):
     dC/dalpha_i = c_i T_i - S_i / (1 - alpha_i), dA/dalpha_i = T_N / (1 - alpha_i) and
     dD/dalpha_i = z_i T_i - S^D_i / (1 - alpha_i) with S^D the same sum over depths (no background). With the
     upstream gradients g_C, g_A, g_D of the pixel, dL/dalpha_i = T_i (g_C . c_i + g_D z_i) - B_i / (1 - alpha_i)
@@ -169,7 +174,7 @@ def composite_backward(g: ti.template(), pix: ti.template(), bg: ti.template(), 
                 trans[p] = t_final[p]
                 behind[p] = -pix.alpha.grad[p] * t_final[p]
                 for c in ti.static(range(channels)):
-                    behind[p] += pix.image.grad[p * channels + c] * t_final[p] * bg[c]
+                    behind[p] += pix.image.grad[p * channels + c] * t_final[p] * bg[p * bg_stride + c]
         for back in range(tile_last - start[t] + 1):
             e = tile_last - back
             k = lists[e]
@@ -268,22 +273,22 @@ def _scratch(t_final, entries: int, columns: int):
 
 
 @ti.ad.grad_replaced
-def rasterize(g, pix, bg, channels, with_depth, tile, width, height, tiles_x, n_tiles, start, lists, rect,
-              power_min, t_final, last, n, first, slots):
+def rasterize(g, pix, bg, bg_stride, channels, with_depth, tile, width, height, tiles_x, n_tiles, start, lists,
+              rect, power_min, t_final, last, n, first, slots):
     """Composite the binned Gaussians into ``pix``.
 
     See :func:`composite_forward` for the arguments; ``n``, ``first`` and ``slots`` (the n Gaussians' tile
     entries, see :func:`gather_gradients`) are for the backward.
     """
-    composite_forward(g, pix, bg, channels, with_depth, tile, width, height, tiles_x, n_tiles, start, lists, rect,
-                      power_min, t_final, last)
+    composite_forward(g, pix, bg, bg_stride, channels, with_depth, tile, width, height, tiles_x, n_tiles, start,
+                      lists, rect, power_min, t_final, last)
 
 
 @ti.ad.grad_for(rasterize)
-def rasterize_grad(g, pix, bg, channels, with_depth, tile, width, height, tiles_x, n_tiles, start, lists, rect,
-                   power_min, t_final, last, n, first, slots):
+def rasterize_grad(g, pix, bg, bg_stride, channels, with_depth, tile, width, height, tiles_x, n_tiles, start, lists,
+                   rect, power_min, t_final, last, n, first, slots):
     """Hand-written adjoint of :func:`rasterize`, reading ``pix.*.grad`` and adding into ``g.*.grad``."""
     trans, behind, partial = _scratch(t_final, lists.shape[0], PARTIAL_COLOR + channels)
-    composite_backward(g, pix, bg, channels, with_depth, tile, width, height, tiles_x, n_tiles, start, lists, rect,
-                       power_min, t_final, last, trans, behind, partial)
+    composite_backward(g, pix, bg, bg_stride, channels, with_depth, tile, width, height, tiles_x, n_tiles, start,
+                       lists, rect, power_min, t_final, last, trans, behind, partial)
     gather_gradients(g, channels, n, first, slots, lists, partial)
