@@ -14,10 +14,11 @@ from fluidnexus.calibrate.assemble import Recording, Roles, assign_roles, write_
 from fluidnexus.calibrate.colmap import media_by_stem, read_colmap
 from fluidnexus.calibrate.nerf import read_nerf
 from fluidnexus.calibrate.pinf import DEFAULT_SOURCE_RADIUS, pinf_dict, read_pinf, source_at_volume_foot
-from fluidnexus.errors import InputError
+from fluidnexus.errors import InputError, require_positive
 from fluidnexus.samples import sample_path
 from fluidnexus.scene import SCENE_FILE, Scene, View, load_ground_truth, load_scene
 from fluidnexus.video import VIDEO_SUFFIXES, probe_video
+from fluidnexus.world_frame import SourceFrame
 
 log = logging.getLogger("fluidnexus")
 
@@ -29,6 +30,7 @@ PROTOCOLS = {
     "four-view": Roles(("train00", "train01", "train03", "train04"), (), ("train02",)),
 }
 MODES = ("from_pinf", "from_nerf", "from_colmap", "images", "video", "sample")
+IMPORTS = ("from_pinf", "from_nerf", "from_colmap")  # modes that read a world in the file's own unit
 
 
 def _parse_scale_distance(text: str | None):
@@ -69,6 +71,9 @@ def _parse_scale_distance(text: str | None):
 @click.option("--source-radius", type=float, default=DEFAULT_SOURCE_RADIUS, show_default=True,
               help="Radius of the smoke inflow, m.")
 @click.option("--fps", type=float, help="Frame rate where the footage does not say (image folders).")
+@click.option("--metres-per-unit", type=float,
+              help="Length of one unit of the imported file's world, in metres (--from-pinf, --from-nerf, "
+                   "--from-colmap; default 1). The scene is written in metres, +y up.")
 @click.option("--link", is_flag=True, help="Symlink the footage into the scene instead of copying it.")
 @click.option("--to-pinf", type=click.Path(path_type=Path, dir_okay=False),
               help="Also write the scene as a PINF info.json here (for PINF/HyFluid baselines).")
@@ -93,6 +98,11 @@ def calibrate(out: Path, overwrite: bool, to_pinf: Path | None, paths: tuple[Pat
     if len(chosen) != 1:
         raise InputError(None, "calibrate", "give exactly one of --from-pinf, --from-nerf, --from-colmap, "
                                             f"--images, --video, --sample (got {len(chosen)})")
+    if opts["metres_per_unit"] is not None:
+        if chosen[0] not in IMPORTS:
+            raise InputError(None, "--metres-per-unit", "applies to imported files only (--from-pinf, --from-nerf, "
+                                                        "--from-colmap)")
+        require_positive(opts["metres_per_unit"], None, "--metres-per-unit")
     if out.exists() and any(out.iterdir()) and not overwrite:
         raise InputError(out, None, "already exists and is not empty (use --overwrite to replace it)")
     scene = {"from_pinf": _from_pinf, "from_nerf": _from_nerf, "from_colmap": _from_colmap,
@@ -109,11 +119,26 @@ def _roles(opts) -> Roles:
 
 def _from_pinf(out: Path, opts, info: Path | None = None, roles: Roles | None = None) -> Scene:
     info = info or opts["from_pinf"]
-    cap = read_pinf(info)
+    cap = read_pinf(info, opts["metres_per_unit"] or 1.0)
     views, gts = assign_roles(cap.recordings, roles or _roles(opts), info)
     return write_scene(out, cap.fps, cap.frame_count, views, gts, cap.volume,
                        source_at_volume_foot(cap.volume, opts["source_radius"]),
-                       {"pinf": cap.kept, "imported_from": str(info)}, link=opts["link"])
+                       {"pinf": cap.kept, "imported_from": str(info)}, link=opts["link"],
+                       source_frame=_recorded(cap.frame), backdrop_color=cap.backdrop_color)
+
+
+def _import_frame(opts) -> SourceFrame:
+    """The world of a NeRF or COLMAP file: its axes as they are, its unit ``--metres-per-unit`` metres."""
+    return SourceFrame.for_import("Y", opts["metres_per_unit"] or 1.0)
+
+
+def _recorded(frame: SourceFrame) -> SourceFrame | None:
+    """What scene.json records: nothing when the file's world already is the scene's."""
+    return None if frame.is_identity else frame
+
+
+def _in_scene(recordings: dict[str, Recording], frame: SourceFrame) -> dict[str, Recording]:
+    return {n: Recording(n, frame.camera_to_scene(r.camera), r.media) for n, r in recordings.items()}
 
 
 def _from_sample(out: Path, opts) -> Scene:
@@ -134,25 +159,28 @@ def _timing(source: Path, recordings, fps: float | None) -> tuple[float, int]:
 
 
 def _write_recordings(out: Path, source: Path, recordings: dict[str, Recording], opts, default_roles: Roles,
-                      volume=None, source_disk=None, extra=None, fps=None) -> Scene:
+                      volume=None, source_disk=None, extra=None, fps=None, source_frame=None) -> Scene:
     roles = _roles(opts) if opts["input_names"] else default_roles
     views, gts = assign_roles(recordings, roles, source)
     rate, count = _timing(source, [recordings[n] for n in roles.input], fps or opts["fps"])
-    return write_scene(out, rate, count, views, gts, volume, source_disk, extra, link=opts["link"])
+    return write_scene(out, rate, count, views, gts, volume, source_disk, extra, link=opts["link"],
+                       source_frame=source_frame)
 
 
 def _from_nerf(out: Path, opts) -> Scene:
     recordings, fps = read_nerf(opts["from_nerf"])
+    frame = _import_frame(opts)
     default = Roles(tuple(n for n, r in recordings.items() if r.media is not None))
-    return _write_recordings(out, opts["from_nerf"], recordings, opts, default, fps=fps,
-                             extra={"imported_from": str(opts["from_nerf"])})
+    return _write_recordings(out, opts["from_nerf"], _in_scene(recordings, frame), opts, default, fps=fps,
+                             extra={"imported_from": str(opts["from_nerf"])}, source_frame=_recorded(frame))
 
 
 def _from_colmap(out: Path, opts) -> Scene:
     recordings = read_colmap(opts["from_colmap"], opts["media"])
+    frame = _import_frame(opts)
     default = Roles(tuple(n for n, r in recordings.items() if r.media is not None))
-    return _write_recordings(out, opts["from_colmap"], recordings, opts, default,
-                             extra={"imported_from": str(opts["from_colmap"])})
+    return _write_recordings(out, opts["from_colmap"], _in_scene(recordings, frame), opts, default,
+                             extra={"imported_from": str(opts["from_colmap"])}, source_frame=_recorded(frame))
 
 
 def _from_images(out: Path, opts) -> Scene:

@@ -14,7 +14,8 @@ log = logging.getLogger("fluidnexus")
 
 
 def _cameras(run, scene, which: str):
-    """(name, camera at the run's resolution, ground-truth video or None) for ``--views``."""
+    """(name, frame -> camera at the run's resolution, ground-truth video or None) for ``--views``; a moving
+    ground-truth camera gives its pose at each frame."""
     from fluidnexus.scene import load_ground_truth
 
     truths = {g.name: g for g in load_ground_truth(scene.root)}
@@ -29,9 +30,10 @@ def _cameras(run, scene, which: str):
     for name in names:
         if name in truths:
             g = truths[name]
-            out.append((name, g.camera.scaled(run.resolution), scene.root / g.video))
+            out.append((name, lambda t, g=g: g.camera_at(t).scaled(run.resolution), scene.root / g.video))
         elif name in views:
-            out.append((name, views[name].camera.scaled(run.resolution), None))
+            cam = views[name].camera.scaled(run.resolution)
+            out.append((name, lambda t, cam=cam: cam, None))
         else:
             raise InputError(scene.root / "scene.json", "--views",
                              f"unknown view {name!r}; known: {sorted(views) + sorted(truths)}")
@@ -61,9 +63,10 @@ def render(run_dir: Path, out: Path, which: str, orbit: int, compare: bool, png:
     start_engine(arch)
     frames = run.frames
     states = [run.state(t) for t in frames]
-    for name, cam, truth in track(_cameras(run, scene, "ground-truth" if compare and which == "all" else which),
-                                  "render"):
-        video = [render_state(s, cam) for s in states]
+    for name, camera_at, truth in track(_cameras(run, scene, "ground-truth" if compare and which == "all" else which),
+                                        "render"):
+        video = [render_state(s, camera_at(t)) for s, t in zip(states, frames)]
+        cam = camera_at(frames[0])
         if compare:
             if truth is None:
                 raise InputError(scene.root / "scene.json", "--compare", f"view {name!r} has no ground-truth video")

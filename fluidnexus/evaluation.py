@@ -1,7 +1,8 @@
 """``fluidnexus eval``: score a run against the scene's ground-truth videos (docs/evaluation.md).
 
-- novel_view: every ground-truth camera renders every frame of the run; PSNR and SSIM per frame against the real
-  frame at the run's resolution (LPIPS too with local AlexNet weights), averaged per view, then over views.
+- novel_view: every ground-truth camera renders every frame of the run (a moving camera from its pose at that
+  frame); PSNR and SSIM per frame against the real frame at the run's resolution (LPIPS too with local AlexNet
+  weights), averaged per view, then over views.
 - resimulation: the visual particles of the first frame are advected through the run's reconstructed velocity
   fields only (x_t = x_{t-1} + dt V_t(x_{t-1}), new particles entering where the run's emitter put them), rendered
   with each frame's appearance and scored the same way (FluidNexus Sec. 4).
@@ -134,7 +135,8 @@ def prediction(run: Run, lpips_weights=None) -> dict:
     novel = {}
     for gt in load_ground_truth(scene.root):
         cam = gt.camera.scaled(run.resolution)
-        novel[gt.name] = _score([render_state(s, cam) for s in states], real(gt.video, cam, frames), lpips_weights)
+        rendered = [render_state(s, gt.camera_at(t).scaled(run.resolution)) for s, t in zip(states, frames)]
+        novel[gt.name] = _score(rendered, real(gt.video, cam, frames), lpips_weights)
 
     def summary(scores: dict) -> dict:
         return {**{k: _mean(getattr(s, k) for s in scores.values()) for k in ("psnr", "ssim", "lpips")},
@@ -159,8 +161,10 @@ def evaluate(run: Run, lpips_weights=None) -> dict:
             video = read_video(scene.root / gt.video, frames=slice(frames[0], frames[-1] + 1),
                                size=(cam.width, cam.height), channels=run.channels)
             truth = video[[t - frames[0] for t in frames]]
-            per_view[gt.name] = _score([render_state(run.state(t), cam) for t in frames], truth, lpips_weights)
-            resim_scores[gt.name] = _score([render_state(s, cam) for s in resim], truth, lpips_weights)
+            cams = [gt.camera_at(t).scaled(run.resolution) for t in frames]  # a moving camera: one per frame
+            per_view[gt.name] = _score([render_state(run.state(t), c) for t, c in zip(frames, cams)], truth,
+                                       lpips_weights)
+            resim_scores[gt.name] = _score([render_state(s, c) for s, c in zip(resim, cams)], truth, lpips_weights)
             bar.advance()
     mean = {k: _mean(getattr(s, k) for s in per_view.values()) for k in ("psnr", "ssim", "lpips")}
     resim_mean = {k: _mean(getattr(s, k) for s in resim_scores.values()) for k in ("psnr", "ssim", "lpips")}

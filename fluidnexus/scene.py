@@ -16,6 +16,7 @@ import numpy as np
 from .atomic import read_json, write_json
 from .camera import Camera
 from .errors import InputError, require_finite, require_positive
+from .world_frame import SourceFrame
 
 FORMAT = "fluidnexus-scene/1"
 SCENE_FILE = "scene.json"
@@ -71,16 +72,30 @@ class View:
         return out
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class GroundTruth:
-    """A real held-out video with its camera; read only by eval and comparison renders."""
+    """A real held-out video with its camera; read only by eval and comparison renders.
+
+    ``poses`` ([frame_count, 4, 4] world-to-camera, or None) makes it a moving camera: frame t is seen from
+    ``camera_at(t)`` (``camera``'s intrinsics, pose t); ``camera`` holds pose 0.
+    """
 
     name: str
     camera: Camera
     video: str
+    poses: np.ndarray | None = None
+
+    def camera_at(self, frame: int) -> Camera:
+        """The camera that filmed scene frame ``frame``."""
+        if self.poses is None:
+            return self.camera
+        return Camera(self.camera.width, self.camera.height, self.camera.K, self.poses[frame])
 
     def to_dict(self) -> dict:
-        return {"name": self.name, "camera": self.camera.to_dict(), "video": self.video}
+        out = {"name": self.name, "camera": self.camera.to_dict(), "video": self.video}
+        if self.poses is not None:
+            out["poses"] = self.poses.tolist()
+        return out
 
 
 @dataclass(frozen=True)
@@ -110,6 +125,8 @@ class Scene:
     source: Source | None = None
     extra: dict = field(default_factory=dict)
     backgrounds: dict[str, Background] = field(default_factory=dict)
+    source_frame: SourceFrame | None = None  # None: the scene is its own source frame (world_frame.py)
+    backdrop_color: tuple[float, float, float] | None = None  # a known backdrop colour (PINF frame_bkg_color)
 
     def view(self, name: str) -> View:
         for v in self.views:
@@ -230,6 +247,36 @@ def png_size(path: Path) -> tuple[int, int]:
     return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
 
 
+def _parse_frame_and_backdrop(data: dict, path: Path) -> dict:
+    """The ``source_frame`` and ``backdrop_color`` records as Scene keyword arguments."""
+    frame = data.get("source_frame")
+    color = data.get("backdrop_color")
+    if color is not None:
+        color = _triple(color, path, "backdrop_color")
+        if not all(0.0 <= c <= 1.0 for c in color):
+            raise InputError(path, "backdrop_color", f"expected 3 values in [0, 1], got {list(color)}")
+    return {"source_frame": None if frame is None else SourceFrame.from_dict(frame, path),
+            "backdrop_color": color}
+
+
+def _parse_poses(value, camera: Camera, frame_count, path: Path, fld: str) -> np.ndarray | None:
+    """A moving camera's per-frame world-to-camera matrices: one per frame, pose 0 equal to ``camera``'s."""
+    if value is None:
+        return None
+    poses = require_finite(value, path, f"{fld}.poses")
+    if poses.ndim != 3 or poses.shape[1:] != (4, 4) or poses.shape[0] != frame_count:
+        raise InputError(path, f"{fld}.poses", f"expected {frame_count} (frame_count) 4x4 world-to-camera "
+                                               f"matrices, got shape {poses.shape}")
+    for t, w2c in enumerate(poses):
+        try:
+            Camera(camera.width, camera.height, camera.K, w2c)
+        except InputError as err:
+            raise err.at(path, f"{fld}.poses[{t}]") from None
+    if not np.allclose(poses[0], camera.w2c, rtol=0, atol=1e-9 * max(1.0, np.abs(camera.w2c).max())):
+        raise InputError(path, f"{fld}.poses[0]", "must equal camera.world_to_camera (the pose at frame 0)")
+    return poses
+
+
 def load_scene(path: str | Path, check_videos: bool = True) -> Scene:
     """Load the pipeline's view of a scene (no ground truth).
 
@@ -255,12 +302,18 @@ def load_scene(path: str | Path, check_videos: bool = True) -> Scene:
         if video is not None and not isinstance(video, str):
             raise InputError(scene_file, f"views[{i}].video", "must be a path string or null")
         camera = Camera.from_dict(item.get("camera"), scene_file, f"views[{i}].camera")
+        if "poses" in item:
+            raise InputError(scene_file, f"views[{i}].poses",
+                             f"view {item['name']!r} moves during the video (one camera pose per frame); synth, "
+                             "refine, recon, predict and interact need cameras that stand still: make a moving "
+                             "camera ground truth (eval and render --compare follow it frame by frame)")
         views.append(View(item["name"], role, camera, video, item.get("provenance")))
     if not views:
         raise InputError(scene_file, "views", "the scene has no views")
     scene = Scene(root, fps, frame_count, tuple(views), _parse_volume(data.get("volume"), scene_file),
                   _parse_source(data.get("source"), scene_file), data.get("extra", {}),
-                  _parse_backgrounds(data.get("backgrounds"), views, root, scene_file, check_videos))
+                  _parse_backgrounds(data.get("backgrounds"), views, root, scene_file, check_videos),
+                  **_parse_frame_and_backdrop(data, scene_file))
     if check_videos:
         check_media(root, scene_file, frame_count,
                     [(f"views[{i}].video", v.video, v.camera) for i, v in enumerate(views) if v.video])
@@ -276,7 +329,8 @@ def load_ground_truth(path: str | Path, check_videos: bool = True) -> tuple[Grou
         if not isinstance(item.get("video"), str):
             raise InputError(scene_file, f"ground_truth[{i}].video", "missing: a ground-truth entry needs a video")
         camera = Camera.from_dict(item.get("camera"), scene_file, f"ground_truth[{i}].camera")
-        out.append(GroundTruth(item["name"], camera, item["video"]))
+        poses = _parse_poses(item.get("poses"), camera, data.get("frame_count"), scene_file, f"ground_truth[{i}]")
+        out.append(GroundTruth(item["name"], camera, item["video"], poses))
     if check_videos and out:
         check_media(root, scene_file, int(data["frame_count"]),
                     [(f"ground_truth[{i}].video", g.video, g.camera) for i, g in enumerate(out)])
@@ -323,6 +377,10 @@ def scene_dict(scene: Scene, ground_truth: tuple[GroundTruth, ...] = ()) -> dict
         out["extra"] = scene.extra
     if scene.backgrounds:
         out["backgrounds"] = {"views": {name: b.to_dict() for name, b in scene.backgrounds.items()}}
+    if scene.source_frame is not None:
+        out["source_frame"] = scene.source_frame.to_dict()
+    if scene.backdrop_color is not None:
+        out["backdrop_color"] = list(scene.backdrop_color)
     return out
 
 

@@ -6,19 +6,26 @@ import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from ..atomic import atomic_dir
 from ..camera import Camera
 from ..errors import InputError
 from ..scene import GroundTruth, Scene, Source, View, Volume, load_ground_truth, load_scene, save_scene
+from ..world_frame import SourceFrame
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Recording:
-    """A camera found in a calibration source, with its footage (a video file, an image or a frame folder)."""
+    """A camera found in a calibration source, with its footage (a video file, an image or a frame folder).
+
+    ``poses`` ([frames, 4, 4] world-to-camera, or None) marks a camera that moves: ``camera`` is its pose at frame 0.
+    """
 
     name: str
     camera: Camera
     media: Path | None
+    poses: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -53,6 +60,12 @@ def assign_roles(recordings: dict[str, Recording], roles: Roles, source_file: Pa
     leak = set(roles.input) & set(roles.ground_truth)
     if leak:
         raise InputError(source_file, "--ground-truth", f"{sorted(leak)} cannot be both input and ground truth")
+    for option, names in (("--input", roles.input), ("--novel", roles.novel)):
+        moving = [n for n in names if recordings[n].poses is not None]
+        if moving:
+            raise InputError(source_file, option,
+                             f"{moving} move during the video (one camera pose per frame); synth, refine and recon "
+                             "need cameras that stand still: name a moving camera with --ground-truth instead")
     views = []
     for name in roles.input:
         rec = recordings[name]
@@ -65,7 +78,7 @@ def assign_roles(recordings: dict[str, Recording], roles: Roles, source_file: Pa
         rec = recordings[name]
         if rec.media is None:
             raise InputError(source_file, "--ground-truth", f"view {name!r} has no footage")
-        gts.append((GroundTruth(name, rec.camera, ""), rec.media))
+        gts.append((GroundTruth(name, rec.camera, "", rec.poses), rec.media))
     return views, gts
 
 
@@ -84,13 +97,15 @@ def _place(media: Path, folder: Path, name: str, link: bool) -> str:
 
 
 def write_scene(out: Path, fps: float, frame_count: int, views, ground_truth, volume: Volume | None,
-                source: Source | None, extra: dict | None = None, link: bool = False) -> Scene:
+                source: Source | None, extra: dict | None = None, link: bool = False,
+                source_frame: SourceFrame | None = None, backdrop_color=None) -> Scene:
     """Write a complete, validated scene folder at ``out`` atomically and return it (loaded back).
 
     Args:
         views: ``[(View, media or None)]``; a view's media is placed under ``videos/``.
         ground_truth: ``[(GroundTruth, media)]``, placed under ``ground_truth/``.
         link: symlink the media instead of copying it.
+        source_frame, backdrop_color: of an imported scene (see :class:`~fluidnexus.scene.Scene`).
     """
     out = Path(out)
     with atomic_dir(out) as tmp:
@@ -100,9 +115,11 @@ def write_scene(out: Path, fps: float, frame_count: int, views, ground_truth, vo
         gts = ()
         if ground_truth:
             (tmp / "ground_truth").mkdir()
-            gts = tuple(GroundTruth(g.name, g.camera, _place(m, tmp / "ground_truth", g.name, link))
+            gts = tuple(GroundTruth(g.name, g.camera, _place(m, tmp / "ground_truth", g.name, link), g.poses)
                         for g, m in ground_truth)
-        save_scene(Scene(tmp, float(fps), int(frame_count), tuple(placed), volume, source, extra or {}), gts, tmp)
+        save_scene(Scene(tmp, float(fps), int(frame_count), tuple(placed), volume, source, extra or {},
+                         source_frame=source_frame, backdrop_color=backdrop_color),
+                   gts, tmp)
         try:
             load_scene(tmp)
             load_ground_truth(tmp)

@@ -43,6 +43,8 @@ PROPERTIES = ("x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2",
 REQUIRED = ("x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
             "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3")
 FRAME_COMMENT = "frame: fluidnexus world (+y up) rotated 180 deg about x, (x, y, z) -> (x, -y, -z): +y down"
+SOURCE_FRAME_COMMENT = ("frame: source, the world of the file the scene was imported from (scene.json "
+                        "source_frame), its axes and length unit, not rotated for viewers")
 CHANNELS_COMMENT = "fluidnexus channels "
 
 
@@ -63,13 +65,15 @@ def viewer_to_world(positions: np.ndarray, rotations: np.ndarray) -> tuple[np.nd
             np.stack([q[:, 1], -q[:, 0], q[:, 3], -q[:, 2]], axis=1))
 
 
-def write_gaussians_ply(path: str | Path, state: FrameState) -> None:
+def write_gaussians_ply(path: str | Path, state: FrameState, viewer_frame: bool = True) -> None:
     """Write the visual Gaussians of one frame as a 3DGS PLY file (atomically).
 
     Args:
         path: the ``.ply`` file to write; its folder is created.
         state: the frame; only its visual Gaussians are written (colours [M, 1] or [M, 3] in [0, 1],
             scales [M, 3] > 0 metres, rotations [M, 4] (w, x, y, z), opacities [M] in [0, 1]).
+        viewer_frame: rotate the world into the viewer frame (above). False writes ``state`` as it is: a state
+            already converted to the scene's source frame (``export --frame source``); the header says which.
 
     Raises:
         InputError: inconsistent shapes, non-finite values or a scale <= 0.
@@ -82,8 +86,10 @@ def write_gaussians_ply(path: str | Path, state: FrameState) -> None:
         raise InputError(path, "visual_scales", "must be > 0 (the PLY stores log(scale))")
     colors = np.asarray(state.visual_colors, dtype=np.float64)
     opacities = np.clip(np.asarray(state.visual_opacities, dtype=np.float64), OPACITY_EPS, 1 - OPACITY_EPS)
-    positions, rotations = world_to_viewer(np.asarray(state.visual_positions, dtype=np.float32),
-                                           np.asarray(state.visual_rotations, dtype=np.float32))
+    positions, rotations = (np.asarray(state.visual_positions, dtype=np.float32),
+                            np.asarray(state.visual_rotations, dtype=np.float32))
+    if viewer_frame:
+        positions, rotations = world_to_viewer(positions, rotations)
 
     vertex = np.zeros(state.num_visual, dtype=[(name, "<f4") for name in PROPERTIES])
     for axis in range(3):
@@ -97,7 +103,7 @@ def write_gaussians_ply(path: str | Path, state: FrameState) -> None:
     comments = ["fluidnexus 3DGS export: SH degree 0 (f_rest_* are zero), opacity = logit(o) with o clamped to "
                 f"[{OPACITY_EPS:g}, 1 - {OPACITY_EPS:g}], scale = log(standard deviation in metres), "
                 "rot = quaternion (w, x, y, z)",
-                FRAME_COMMENT,
+                FRAME_COMMENT if viewer_frame else SOURCE_FRAME_COMMENT,
                 f"{CHANNELS_COMMENT}{state.channels}",
                 f"fluidnexus frame {state.frame}"]
     ply = PlyData([PlyElement.describe(vertex, "vertex")], text=False, byte_order="<", comments=comments)
@@ -109,7 +115,8 @@ def read_gaussians_ply(path: str | Path) -> dict[str, np.ndarray]:
     """Read a 3DGS PLY file (ours or another tool's) back into world-frame Gaussians.
 
     Files from other tools are assumed to use the same viewer frame (+y down, as COLMAP-trained scenes do);
-    their view-dependent ``f_rest_*`` coefficients are ignored.
+    their view-dependent ``f_rest_*`` coefficients are ignored. A file written with ``viewer_frame=False``
+    (``export --frame source``, said in its header) is returned in its own frame, unrotated.
 
     Args:
         path: a PLY file with a ``vertex`` element holding at least x y z, f_dc_0..2, opacity, scale_0..2
@@ -144,8 +151,10 @@ def read_gaussians_ply(path: str | Path) -> dict[str, np.ndarray]:
         return np.stack([np.asarray(vertex[n], dtype=np.float64) for n in names], axis=1)
 
     channels = 1 if f"{CHANNELS_COMMENT}1" in ply.comments else 3
-    positions, rotations = viewer_to_world(column("x", "y", "z").astype(np.float32),
-                                           column("rot_0", "rot_1", "rot_2", "rot_3").astype(np.float32))
+    positions, rotations = (column("x", "y", "z").astype(np.float32),
+                            column("rot_0", "rot_1", "rot_2", "rot_3").astype(np.float32))
+    if SOURCE_FRAME_COMMENT not in ply.comments:
+        positions, rotations = viewer_to_world(positions, rotations)
     logits = np.asarray(vertex["opacity"], dtype=np.float64)
     return {
         "visual_positions": positions,
