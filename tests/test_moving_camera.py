@@ -84,3 +84,10 @@ def test_stages_refuse_a_moving_input_camera(moving_scene, tmp_path):
         assert result.exit_code == 2 and len(lines) == 1, result.output
         assert "scene.json" in lines[0] and "views[1].poses" in lines[0] and "moves" in lines[0], lines[0]
     assert not (tmp_path / "R").exists()
+
+
+def test_diagnose_leaves_a_moving_camera_out(moving_scene):
+    from fluidnexus.diagnose.run import load_observed
+
+    scene, _, _ = moving_scene
+    assert load_observed(scene, 0, 2, 16).names == ("train00",)

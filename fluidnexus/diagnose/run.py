@@ -23,11 +23,15 @@ DEFAULT_SOURCE = ((0.34, 0.0, -0.225), 0.09)  # ScalarFlow inflow (docs/simulato
 
 
 def load_observed(scene_dir: Path, first: int, last: int, height: int) -> Observed:
-    """Every real view of the scene (input views, novel views that have footage, ground truth) as gray images
-    of ``height`` rows, frames [first, last)."""
+    """Every real view of the scene (input views, novel views that have footage, ground truth whose camera
+    stands still) as gray images of ``height`` rows, frames [first, last)."""
     scene = load_scene(scene_dir)
     views = [(v.name, v.camera, scene.video_path(v)) for v in scene.views if v.video is not None]
-    views += [(g.name, g.camera, scene.root / g.video) for g in load_ground_truth(scene_dir)]
+    for g in load_ground_truth(scene_dir):
+        if g.poses is not None:  # the fits below assume still cameras
+            log.info("diagnose: ground-truth view %s left out: its camera moves (one pose per frame)", g.name)
+            continue
+        views.append((g.name, g.camera, scene.root / g.video))
     if not views:
         raise InputError(scene_dir, "views", "diagnose needs at least one view with footage")
     if not 0 <= first < last <= scene.frame_count:
