@@ -4,6 +4,7 @@ Every pixel is composited against every Gaussian in depth order; torch autograd 
 the same rules as the Taichi renderer (Kerbl et al. 2023): Sigma = R S S^T R^T, EWA projection with the
 Jacobian evaluated at x/z, y/z clamped to the image +- 15 %, a 0.3 px^2 dilation, alpha = min(0.99, o exp(power)),
 contributions below 1/255 skipped, and compositing stopped before the transmittance falls below 1e-4.
+The background is one colour [C] or one colour per pixel [H, W, C].
 """
 import torch
 
@@ -63,6 +64,7 @@ def render_reference(camera, means, scales, quats, opacities, colors, background
     """Dense front-to-back compositing of every Gaussian at every pixel centre.
 
     Args:
+        background: [C] one colour, or [H, W, C] one per pixel (the full image's, also with ``rows``).
         rows: render only image rows [r0, r1) (to bound memory on large images); default all.
     Returns:
         image [H, W, C], alpha [H, W], depth [H, W] (sum of alpha-weighted camera z); H = r1 - r0 with rows.
@@ -86,6 +88,8 @@ def render_reference(camera, means, scales, quats, opacities, colors, background
     trans = torch.cumprod(torch.cat([torch.ones_like(alpha[:, :1]), 1 - alpha], 1), dim=1)
     weight = alpha * trans[:, :-1]
     t_n = trans[:, -1]
+    if background.dim() == 3:
+        background = background[r0:r1].reshape(-1, background.shape[-1])
     image = weight @ col + t_n[:, None] * background
     depth = weight @ z
     return image.reshape(h, w, -1), (1 - t_n).reshape(h, w), depth.reshape(h, w)
