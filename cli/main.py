@@ -12,6 +12,7 @@ import click
 from fluidnexus import __version__
 from fluidnexus.errors import InputError, RunError
 
+from .batch import batch
 from .background import background
 from .calibrate import calibrate
 from .demo import demo
@@ -74,3 +75,4 @@ main.add_command(predict)
 main.add_command(interact)
 main.add_command(diagnose)
 main.add_command(background)
+main.add_command(batch)

@@ -1,0 +1,174 @@
+"""One step of one scene as the arguments of the single-scene command that does it.
+
+A batch step runs exactly what ``fluidnexus STEP ...`` runs: the step's click command is called in-process with the
+arguments built here, so a scene of a batch gets the same files as the same commands typed by hand. The manifest's
+options for a step are that command's options (``frames = "0:40"`` is ``--frames 0:40``); the batch sets the
+folders, ``--arch`` and ``--resume`` itself.
+
+Layout of one scene's output folder (``DIR/scenes/NAME``)::
+
+    scene/            the scene folder (``calibrate``; synth and refine add the novel videos)
+    run/              the reconstruction run (``recon``)
+    eval.json         the scores (``eval`` of run/)
+    predict/          the prediction run (``predict`` after run/)
+    diagnose/         the model diagnosis (``diagnose`` of scene/)
+    steps/STEP.json   completion marker of each finished step: its arguments and seconds
+    log.txt           the log of every step, appended
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import click
+
+PREPARE = "scene"  # the first step of every scene: make its scene folder (``calibrate``, or a copy of a folder)
+STEPS = ("synth", "refine", "recon", "eval", "predict", "diagnose")  # the order they run in
+NEEDS_RUN = ("eval", "predict")  # steps that read the reconstruction run
+SCENE_SOURCES = ("sample", "from_pinf", "scene")
+
+# click parameters that the batch sets for every step (folders, engine, resume)
+_BATCH_SET = {"out", "json_file", "resume", "arch", "overwrite", "to_pinf"}
+# calibrate parameters that the scene entry itself names (its source and view roles)
+_SOURCE_SET = {"from_pinf", "from_nerf", "from_colmap", "images", "video", "sample", "protocol", "input_names",
+               "novel_names", "gt_names", "paths"}
+
+
+def command(step: str) -> click.Command:
+    """The click command of a step (``scene`` is ``calibrate``)."""
+    from cli.calibrate import calibrate
+    from cli.diagnose import diagnose
+    from cli.predict import predict
+    from cli.recon import recon
+    from cli.refine import refine
+    from cli.show import evaluate
+    from cli.synth import synth
+
+    return {PREPARE: calibrate, "synth": synth, "refine": refine, "recon": recon, "eval": evaluate,
+            "predict": predict, "diagnose": diagnose}[step]
+
+
+def settable(step: str) -> dict[str, click.Option]:
+    """The options a manifest may give for ``step``, by manifest key (the long option name, '-' as '_')."""
+    reserved = _BATCH_SET | (_SOURCE_SET if step == PREPARE else set())
+    out = {}
+    for param in command(step).params:
+        if not isinstance(param, click.Option) or param.name in reserved:
+            continue
+        for name in param.opts:
+            if name.startswith("--"):
+                out[name[2:].replace("-", "_")] = param
+    return out
+
+
+def required(step: str) -> list[str]:
+    """Manifest keys the step's command requires that the batch does not set (e.g. predict's ``frames``)."""
+    return sorted(k for k, p in settable(step).items() if p.required)
+
+
+def option_tokens(step: str, key: str, value, base: Path) -> list[str]:
+    """Command-line tokens for one manifest option; raises ValueError with a plain message when it is bad.
+
+    Booleans switch flags (``offload = true``, ``anchor = false`` -> ``--no-anchor``), lists become comma-separated
+    values, paths are taken relative to ``base`` (the manifest's folder).
+    """
+    params = settable(step)
+    if key not in params:
+        raise ValueError(f"unknown option for {step}; known: {', '.join(sorted(params))}")
+    param = params[key]
+    if param.is_flag and not param.count:
+        if not isinstance(value, bool):
+            raise ValueError(f"expected true or false, got {value!r}")
+        if value:
+            return [param.opts[0]]
+        if param.secondary_opts:
+            return [param.secondary_opts[0]]
+        return []
+    if isinstance(value, bool) or isinstance(value, (dict, list)) and not value:
+        raise ValueError(f"expected a value, got {value!r}")
+    if isinstance(value, list):
+        text = ",".join(str(v) for v in value)
+    elif isinstance(value, dict):
+        raise ValueError(f"expected a value, got a table {value!r}")
+    else:
+        text = str(value)
+    if isinstance(param.type, click.Path):
+        text = str((base / text).resolve())
+    else:
+        try:
+            param.type.convert(text, param, None)
+        except click.BadParameter as err:
+            raise ValueError(err.message) from None
+    return [param.opts[0], text]
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Where one scene's outputs go (see the module docstring)."""
+
+    root: Path
+
+    @property
+    def scene(self) -> Path:
+        return self.root / "scene"
+
+    @property
+    def run(self) -> Path:
+        return self.root / "run"
+
+    @property
+    def eval_json(self) -> Path:
+        return self.root / "eval.json"
+
+    @property
+    def predict(self) -> Path:
+        return self.root / "predict"
+
+    @property
+    def diagnose(self) -> Path:
+        return self.root / "diagnose"
+
+    @property
+    def log(self) -> Path:
+        return self.root / "log.txt"
+
+    def marker(self, step: str) -> Path:
+        return self.root / "steps" / f"{step}.json"
+
+    def partial_output(self, step: str) -> Path | None:
+        """A folder that an unfinished ``step`` may have left and that it recreates from scratch."""
+        return {"predict": self.predict, "diagnose": self.diagnose}.get(step)
+
+
+def step_args(step: str, source: dict, options: list[str], layout: Layout, arch: str) -> list[str]:
+    """The full argument list of ``step``'s command for one scene (resume decided from the files already there)."""
+    if step == PREPARE:
+        return source_args(source) + options + ["--out", str(layout.scene), "--overwrite"]
+    if step in ("synth", "refine"):
+        return [str(layout.scene)] + _device(options, arch)
+    if step == "recon":
+        resume = ["--resume"] if (layout.run / "config.json").exists() else []
+        return [str(layout.scene), "--out", str(layout.run), "--arch", arch] + resume + options
+    if step == "eval":
+        return [str(layout.run), "--json", str(layout.eval_json), "--arch", arch] + options
+    if step == "predict":
+        return [str(layout.run), "--out", str(layout.predict), "--arch", arch] + _device(options, arch)
+    if step == "diagnose":
+        return [str(layout.scene), "--out", str(layout.diagnose), "--arch", arch] + options
+    raise ValueError(step)
+
+
+def source_args(source: dict) -> list[str]:
+    """calibrate's arguments naming a scene's source (a copied scene folder needs none: see tasks.copy_scene)."""
+    if source["kind"] == "sample":
+        return ["--sample", source["sample"], "--protocol", source["protocol"]]
+    if source["kind"] == "from_pinf":
+        roles = [(flag, source[key]) for flag, key in (("--input", "input"), ("--novel", "novel"),
+                                                       ("--ground-truth", "ground_truth")) if source.get(key)]
+        return ["--from-pinf", source["from_pinf"]] + [t for flag, names in roles for t in (flag, ",".join(names))]
+    raise ValueError(source["kind"])
+
+
+def _device(options: list[str], arch: str) -> list[str]:
+    """The torch device of the generative models follows the task's resources unless the manifest names one."""
+    return options if "--device" in options else options + ["--device", arch]
