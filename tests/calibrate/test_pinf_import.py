@@ -144,8 +144,14 @@ def scaled_sample_info(folder: Path, factor: float) -> Path:
 def test_metres_per_unit_gives_the_original_geometry(tmp_path):
     roles = ["--input", "train00,train01,train03,train04", "--ground-truth", "train02"]
     ok("calibrate", "--from-pinf", sample_path("scalarflow") / "info.json", *roles, "--out", tmp_path / "m")
-    ok("calibrate", "--from-pinf", scaled_sample_info(tmp_path / "cm", 10.0), *roles, "--metres-per-unit", "0.1",
-       "--out", tmp_path / "s")
+    scaled = scaled_sample_info(tmp_path / "cm", 10.0)
+    ok("calibrate", "--from-pinf", scaled, *roles, "--metres-per-unit", "0.1", "--out", tmp_path / "s",
+       "--to-pinf", tmp_path / "back.json")
+    original, back = json.loads(scaled.read_text()), json.loads((tmp_path / "back.json").read_text())
+    assert back["voxel_scale"] == original["voxel_scale"] and back["voxel_matrix"] == original["voxel_matrix"]
+    for split in ("train_videos", "test_videos"):  # cameras written back in the file's unit
+        for e, f in zip(original[split], back[split]):
+            np.testing.assert_allclose(f["transform_matrix"], e["transform_matrix"], atol=1e-12)
     a, b = (json.loads((tmp_path / n / "scene.json").read_text()) for n in ("m", "s"))
     assert b["source_frame"]["metres_per_unit"] == 0.1 and "source_frame" not in a
     for key in ("min", "max"):
