@@ -24,8 +24,9 @@ def _window(text: str, name: str) -> tuple[int, int]:
 @click.option("--validate-frames", default="60:90", show_default=True, help="Validation window C:D (half-open).")
 @click.option("--height", default=48, show_default=True, type=click.IntRange(16, 512),
               help="Observation image height [px].")
-@click.option("--spacing", default=0.02, show_default=True, type=click.FloatRange(0.005, 0.1),
-              help="Particle spacing of the simulated plume [m].")
+@click.option("--spacing", default=None, type=click.FloatRange(0, min_open=True),
+              help="Particle spacing of the simulated plume [m]; default 0.02 m x the scene's length scale "
+                   "(docs/scale.md).")
 @click.option("--evals", default=14, show_default=True, type=click.IntRange(3, 200),
               help="Rollouts per fit (Nelder-Mead evaluations).")
 @arch_option

@@ -38,6 +38,10 @@ def load_model_file(path):
     from fluidnexus.engine import ModelConfig
 
     try:
-        return ModelConfig.from_dict(read_json(path, "model file").get("model", {}))
+        model = ModelConfig.from_dict(read_json(path, "model file").get("model", {}))
     except (OSError, ValueError, TypeError, KeyError) as err:
         raise InputError(path, "model", str(err)) from None
+    if model.air is not None:  # docs/simulator.md, "Model structures"
+        raise InputError(path, "model.structure", "recon, predict and interact run the paper's gas; this model is "
+                         "the gas in ambient air (ambient_air), which only diagnose simulates so far")
+    return model

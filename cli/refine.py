@@ -10,7 +10,8 @@ from fluidnexus.errors import InputError
 from fluidnexus.scene import View, load_scene, save_views
 from fluidnexus.video import write_video
 
-from .synth import read_footage
+from .options import max_memory_option
+from .synth import read_footage, resolution_option
 
 log = logging.getLogger("fluidnexus")
 
@@ -30,8 +31,11 @@ log = logging.getLogger("fluidnexus")
 @click.option("--offload", is_flag=True, help="cogvideox: CPU offload of sub-models (small GPUs).")
 @click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto", show_default=True,
               help="cogvideox: torch device.")
+@resolution_option
+@max_memory_option
 def refine(scene_dir: Path, method: str, weights: Path | None, lora: Path | None, strength: float, steps: int,
-           prompt: str | None, prompt_embeds: Path | None, seed: int, offload: bool, device: str) -> None:
+           prompt: str | None, prompt_embeds: Path | None, seed: int, offload: bool, device: str, resolution: str,
+           max_memory: str) -> None:
     """Refine every novel video of SCENE; the unrefined video is kept and named in the provenance.
 
     \b
@@ -39,11 +43,18 @@ def refine(scene_dir: Path, method: str, weights: Path | None, lora: Path | None
     fluidnexus refine scene --method cogvideox --weights ~/models/CogVideoX-5b --lora ~/models/lora --offload
     """
     from fluidnexus.gen.refiner import make_refiner
+    from fluidnexus.memory import check, parse_limit, video_estimate
 
+    from .recon import resolve_resolution
+
+    limit = parse_limit(max_memory)
     scene = load_scene(scene_dir)
     novel = [v for v in scene.with_role("novel") if v.video is not None]
     if not novel:
         raise InputError(scene.root / "scene.json", "views", "no novel view has a video yet; run synth first")
+    scale = resolve_resolution(resolution, scene)
+    size = (novel[0].camera.scaled(scale).width, novel[0].camera.scaled(scale).height)
+    check(video_estimate("refine", scene.frame_count, *size, 4), limit)
     if method == "cogvideox":
         from fluidnexus.gen.cogvideox import DEFAULT_PROMPT, CogVideoXConfig
 
@@ -59,8 +70,8 @@ def refine(scene_dir: Path, method: str, weights: Path | None, lora: Path | None
         unrefined = provenance.get("unrefined", view.video)  # re-running refine starts from the rough video
         log.info("refine %s: %s", method, view.name)
         rel = f"videos/{view.name}_refined.mp4"
-        write_video(scene.root / rel, refiner.refine(read_footage(scene.root / unrefined)), scene.fps)
-        provenance.update({"unrefined": unrefined, "refine": refiner.provenance()})
+        write_video(scene.root / rel, refiner.refine(read_footage(scene.root / unrefined, size)), scene.fps)
+        provenance.update({"unrefined": unrefined, "refine": {**refiner.provenance(), "resolution": scale}})
         done[view.name] = View(view.name, view.role, view.camera, rel, provenance)
     save_views(scene.root, tuple(done.get(v.name, v) for v in scene.views))
     log.info("refined %d novel videos", len(done))

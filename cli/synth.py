@@ -11,12 +11,20 @@ from fluidnexus.errors import InputError
 from fluidnexus.scene import View, load_scene, save_views
 from fluidnexus.video import read_video, write_video
 
+from .options import max_memory_option
+
 log = logging.getLogger("fluidnexus")
 
+resolution_option = click.option(
+    "--resolution", default="auto", show_default=True,
+    help="Work and write at this scale of the scene's videos, or 'auto': recon's rule (long side 480 px), so "
+         "recon reads the written videos as they are.")
 
-def read_footage(path: Path) -> np.ndarray:
-    """[T, H, W, C] float32; a gray video stored as RGB (R = G = B) comes back with C = 1."""
-    video = read_video(path)
+
+def read_footage(path: Path, size: tuple[int, int] | None = None) -> np.ndarray:
+    """[T, H, W, C] float32 at ``size`` (width, height; None: the file's); a gray video stored as RGB
+    (R = G = B) comes back with C = 1."""
+    video = read_video(path, size=size)
     if video.shape[-1] == 3 and np.array_equal(video[..., :1], video[..., 1:2]) and np.array_equal(
             video[..., :1], video[..., 2:]):
         return np.ascontiguousarray(video[..., :1])
@@ -34,8 +42,10 @@ def read_footage(path: Path) -> np.ndarray:
 @click.option("--seed", type=int, default=0, show_default=True, help="zero123: noise seed.")
 @click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto", show_default=True,
               help="zero123: torch device.")
+@resolution_option
+@max_memory_option
 def synth(scene_dir: Path, method: str, weights: Path | None, input_name: str | None, steps: int, guidance: float,
-          seed: int, device: str) -> None:
+          seed: int, device: str, resolution: str, max_memory: str) -> None:
     """Synthesise a video for every novel view of SCENE from its input view.
 
     \b
@@ -43,7 +53,12 @@ def synth(scene_dir: Path, method: str, weights: Path | None, input_name: str | 
     fluidnexus synth scene --method zero123 --weights ~/models/zero123-xl-scalarflow
     """
     from fluidnexus.gen.synthesizer import SynthesisInput, make_synthesizer
+    from fluidnexus.memory import check, parse_limit, video_estimate
+    from fluidnexus.scene_scale import scene_factor
 
+    from .recon import resolve_resolution
+
+    limit = parse_limit(max_memory)
     scene = load_scene(scene_dir)
     inputs = scene.with_role("input")
     if not inputs:
@@ -54,20 +69,26 @@ def synth(scene_dir: Path, method: str, weights: Path | None, input_name: str | 
     novel = scene.with_role("novel")
     if not novel:
         raise InputError(scene.root / "scene.json", "views", "the scene has no novel view to synthesise")
+    scale = resolve_resolution(resolution, scene)
+    camera = source.camera.scaled(scale)
+    check(video_estimate("synth", scene.frame_count, camera.width, camera.height, 3), limit)
     if method == "zero123":
         from fluidnexus.gen.zero123 import Zero123Config
 
         synthesizer = make_synthesizer(method, weights=weights, config=Zero123Config(
             steps=steps, guidance=guidance, seed=seed, device=None if device == "auto" else device))
     else:
-        synthesizer = make_synthesizer(method)
-    inp = SynthesisInput(read_footage(scene.video_path(source)), source.camera, scene.source, scene.volume)
+        from fluidnexus.gen.axisym import AxisymConfig
+
+        synthesizer = make_synthesizer(method, config=AxisymConfig().scaled(scene_factor(scene)))
+    footage = read_footage(scene.video_path(source), (camera.width, camera.height))
+    inp = SynthesisInput(footage, camera, scene.source, scene.volume)
     done = {}
     for view in novel:
         log.info("synth %s: %s -> %s", method, source.name, view.name)
         rel = f"videos/{view.name}_synth.mp4"
-        write_video(scene.root / rel, synthesizer.synthesize(inp, view.camera), scene.fps)
+        write_video(scene.root / rel, synthesizer.synthesize(inp, view.camera.scaled(scale)), scene.fps)
         done[view.name] = View(view.name, view.role, view.camera, rel,
-                               {"synth": {**synthesizer.provenance(), "input": source.name}})
+                               {"synth": {**synthesizer.provenance(), "input": source.name, "resolution": scale}})
     save_views(scene.root, tuple(done.get(v.name, v) for v in scene.views))
     log.info("wrote %d novel videos into %s", len(done), scene.root / "videos")

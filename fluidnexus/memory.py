@@ -157,3 +157,11 @@ def recon_estimate(scene, setup, frames: tuple[int, int], n_seeds: int) -> Estim
             "--physical-spacing / --physical-emit-spacing or --frames")
     est.add("visual particles", visual_bytes(visual, cfg.channels), "--visual-spacing or --frames")
     return est
+
+
+def video_estimate(command: str, frames: int, width: int, height: int, videos: int) -> Estimate:
+    """A command that holds ``videos`` RGB float32 videos of ``frames`` x ``width`` x ``height`` at once
+    (synth: the input, the output and the warp; refine: the rough video, its smoothed copy and the output)."""
+    est = Estimate(command)
+    est.add("videos", videos * frames * width * height * 3 * F32, "--resolution")
+    return est

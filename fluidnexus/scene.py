@@ -337,9 +337,20 @@ def load_ground_truth(path: str | Path, check_videos: bool = True) -> tuple[Grou
     return tuple(out)
 
 
+def _fits_camera(width: int, height: int, camera: Camera) -> bool:
+    """A video fits its camera at the camera's size or uniformly scaled (``Camera.scaled``), as ``synth`` and
+    ``refine`` write their videos at the working resolution."""
+    if (width, height) == (camera.width, camera.height):
+        return True
+    sizes = (camera.scaled(f) for f in (width / camera.width, height / camera.height))
+    return any((width, height) in ((c.width, c.height), (c.width + c.width % 2, c.height + c.height % 2))
+               for c in sizes)  # write_video pads an odd size to even
+
+
 def check_media(root: Path, scene_file: Path, frame_count: int, entries) -> None:
-    """Require every video to exist, decode, have ``frame_count`` frames and share one resolution that matches
-    its camera. ``entries`` is a list of ``(field, relative_path, camera)``."""
+    """Require every video to exist, decode, have ``frame_count`` frames and fit its camera (its size, or that
+    size uniformly scaled: ``_fits_camera``), and every camera to share one resolution. ``entries`` is a list
+    of ``(field, relative_path, camera)``."""
     from .video import probe_video
 
     first = None
@@ -351,15 +362,15 @@ def check_media(root: Path, scene_file: Path, frame_count: int, entries) -> None
         if info.frame_count != frame_count:
             raise InputError(video, "frame_count",
                              f"has {info.frame_count} frames, but {scene_file.name} says frame_count={frame_count}")
-        if (info.width, info.height) != (camera.width, camera.height):
+        if not _fits_camera(info.width, info.height, camera):
             raise InputError(video, "resolution",
                              f"is {info.width}x{info.height}, but its camera ({fld}) is "
                              f"{camera.width}x{camera.height}")
         if first is None:
-            first = (rel, info.width, info.height)
-        elif (info.width, info.height) != first[1:]:
+            first = (rel, camera.width, camera.height)
+        elif (camera.width, camera.height) != first[1:]:
             raise InputError(video, "resolution",
-                             f"is {info.width}x{info.height}, but {first[0]} is {first[1]}x{first[2]}; "
+                             f"is {camera.width}x{camera.height}, but {first[0]} is {first[1]}x{first[2]}; "
                              "all videos of a scene share one resolution")
 
 

@@ -10,6 +10,7 @@ import numpy as np
 
 from fluidnexus.errors import InputError
 from fluidnexus.scene import load_ground_truth, load_scene
+from fluidnexus.scene_scale import scene_factor
 from fluidnexus.video import read_video
 
 from .observe import Observed, observables
@@ -65,7 +66,7 @@ def visual_hull(observed: Observed, lo, hi, spacing: float, level: float = 0.15)
 
 
 def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, int], height: int = 48,
-             spacing: float = 0.02, maxfev: int = 14, candidates=tuple(EXTENSIONS)) -> dict:
+             spacing: float | None = None, maxfev: int = 14, candidates=tuple(EXTENSIONS)) -> dict:
     """Run the whole procedure and write report.json, report.md, plots and model.json into ``out_dir``.
 
     Args:
@@ -73,7 +74,8 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
         out_dir: output folder (created).
         train, validate: half-open frame windows [a, b) and [c, d) with a < b <= c < d.
         height: observation image height [px] (width follows each camera's aspect).
-        spacing: physical particle spacing of the simulated plume [m].
+        spacing: physical particle spacing of the simulated plume [m]; None: 0.02 m times the scene's length
+            scale (docs/scale.md), as are the margins around the source and the volume.
         maxfev: rollouts per fit (Nelder-Mead evaluations).
         candidates: names of the extensions tried (default all of :data:`EXTENSIONS`).
 
@@ -90,15 +92,17 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
     if unknown:
         raise InputError(None, "candidates", f"unknown extensions {sorted(unknown)}; known: {sorted(EXTENSIONS)}")
     scene = load_scene(scene_dir)
+    factor = scene_factor(scene)
+    spacing = 0.02 * factor if spacing is None else spacing
     observed = load_observed(scene_dir, a, d, height)
     src = (scene.source.center, scene.source.radius) if scene.source else DEFAULT_SOURCE
     if scene.volume:
         lo, hi = np.asarray(scene.volume.min, float), np.asarray(scene.volume.max, float)
     else:
-        lo = np.asarray(src[0]) - [0.3, 0.05, 0.3]
-        hi = np.asarray(src[0]) + [0.3, 0.8, 0.3]
+        lo = np.asarray(src[0]) - factor * np.array([0.3, 0.05, 0.3])
+        hi = np.asarray(src[0]) + factor * np.array([0.3, 0.8, 0.3])
     seed = visual_hull(observed, lo, hi, spacing)
-    setup = PlumeSetup(tuple(src[0]), float(src[1]), spacing, observed.fps, d - a, tuple(lo - 0.1), tuple(hi + 0.1),
+    setup = PlumeSetup(tuple(src[0]), float(src[1]), spacing, observed.fps, d - a, tuple(lo - 0.1 * factor), tuple(hi + 0.1 * factor),
                        seed)
     sim = PlumeSimulator(setup)
     cams = observed.cameras

@@ -35,18 +35,20 @@ def _vec(theta: ti.template(), off):
 
 # ---------------------------------------------------------------- buoyancy
 @ti.kernel
-def add_buoyancy(n: int, off: int, gx: float, gy: float, gz: float, age: ti.template(), theta: ti.template(),
-                 force: ti.template()):
-    # FluidNexus Eq. S1 buoyancy alpha g, optionally decaying with particle age: alpha exp(-decay age) g
+def add_buoyancy(n: int, off: int, gx: float, gy: float, gz: float, age: ti.template(), smoke: ti.template(),
+                 theta: ti.template(), force: ti.template()):
+    # FluidNexus Eq. S1 buoyancy alpha g, optionally decaying with particle age: alpha exp(-decay age) g, on smoke
+    # only (smoke weight 1; 0 on the air particles of the ambient-air structure, engine/ambient.py)
     for i in range(n):
-        a = theta[off] * ti.exp(-theta[off + 1] * age[i])
+        a = theta[off] * ti.exp(-theta[off + 1] * age[i]) * smoke[i]
         force[i] += a * ti.Vector([gx, gy, gz])
 
 
 @register_term
 @dataclass(frozen=True)
 class Buoyancy:
-    """Buoyancy alpha exp(-decay age) g (FluidNexus Eq. S1; decay = 0 is the paper's constant term).
+    """Buoyancy alpha exp(-decay age) g (FluidNexus Eq. S1; decay = 0 is the paper's constant term), times each
+    particle's smoke weight (1 for every particle of the paper's gas, 0 for ambient air).
 
     Attributes:
         alpha: buoyancy coefficient (dimensionless, < 0 rises). The release's ScalarFlow -3 (FluidNexus sets -6)
@@ -65,7 +67,7 @@ class Buoyancy:
     workspace: ClassVar[tuple] = ()
 
     def launch(self, ctx, off: int) -> None:
-        ctx.record(add_buoyancy, ctx.n, off, *self.gravity, ctx.age, ctx.theta, ctx.force)
+        ctx.record(add_buoyancy, ctx.n, off, *self.gravity, ctx.age, ctx.smoke, ctx.theta, ctx.force)
 
 
 # ---------------------------------------------------------------- drag

@@ -10,6 +10,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 
 import numpy as np
 
+from .ambient import AmbientAir, structure_from_dict, structure_to_dict
 from .forces import TERMS, Buoyancy, Drag
 from .sph import lattice_density
 
@@ -71,13 +72,17 @@ def _param_size(value) -> int:
 
 @dataclass(frozen=True)
 class ModelConfig:
-    """Which external terms act on the gas, in order, with their parameters.
+    """Which external terms act on the gas, in order, with their parameters, and the model structure.
 
     The differentiable parameters of all terms form one flat vector ``theta`` (see :meth:`param_names`,
     :meth:`to_vector`, :meth:`with_vector`); gradients of a loss come back in that layout.
+
+    ``air`` selects the structure: None is the paper's gas (``paper_gas``: smoke particles in empty space), an
+    :class:`~fluidnexus.engine.ambient.AmbientAir` the gas in ambient air (``ambient_air``, engine/ambient.py).
     """
 
     terms: tuple = field(default_factory=lambda: (Buoyancy(), Drag()))
+    air: AmbientAir | None = None
 
     def __post_init__(self):
         kinds = [t.kind for t in self.terms]
@@ -89,6 +94,11 @@ class ModelConfig:
         """The paper's ScalarFlow model: buoyancy alpha = -3 in the release's x100 space (alpha = -0.03 with g in
         m/s^2, i.e. 0.29 m/s^2 upward), drag k = 3 1/s in still air."""
         return cls((Buoyancy(alpha=-0.03), Drag(k=3.0)))
+
+    @property
+    def structure(self) -> str:
+        """``"paper_gas"`` or ``"ambient_air"``."""
+        return "paper_gas" if self.air is None else self.air.name
 
     def term(self, kind: str):
         for t in self.terms:
@@ -136,10 +146,10 @@ class ModelConfig:
                     tuple(float(x) for x in theta[k:k + n])
                 k += n
             terms.append(replace(t, **upd))
-        return ModelConfig(tuple(terms))
+        return replace(self, terms=tuple(terms))
 
     def to_dict(self) -> dict:
-        """Plain-dict form: ``{"terms": [{"kind": ..., <params>}, ...]}``."""
+        """Plain-dict form: ``{"terms": [{"kind": ..., <params>}, ...], "structure": {"name": ..., <params>}}``."""
         out = []
         for t in self.terms:
             d = {"kind": t.kind}
@@ -147,10 +157,11 @@ class ModelConfig:
                 v = getattr(t, f.name)
                 d[f.name] = list(v) if isinstance(v, tuple) else v
             out.append(d)
-        return {"terms": out}
+        return {"terms": out, "structure": structure_to_dict(self.air)}
 
     @classmethod
     def from_dict(cls, d: dict) -> "ModelConfig":
+        """The inverse of :meth:`to_dict`; a dict without ``structure`` (older model.json) is the paper's gas."""
         terms = []
         for entry in d.get("terms", []):
             entry = dict(entry)
@@ -163,4 +174,4 @@ class ModelConfig:
             if unknown:
                 raise ValueError(f"unknown keys for term {kind!r}: {sorted(unknown)}")
             terms.append(cls_(**{k: tuple(v) if isinstance(v, list) else v for k, v in entry.items()}))
-        return cls(tuple(terms))
+        return cls(tuple(terms), structure_from_dict(d.get("structure", {"name": "paper_gas"})))

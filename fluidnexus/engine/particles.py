@@ -82,10 +82,10 @@ class ParticleSet:
 
 class PhysicalParticles(ParticleSet):
     """Physical particles: position [m], velocity [m/s], force (last step's external acceleration) [m/s^2],
-    age [s]."""
+    age [s], smoke weight (1 = smoke, the default; 0 = ambient air, engine/ambient.py)."""
 
     def __init__(self, capacity: int):
-        super().__init__(capacity, {"position": 3, "velocity": 3, "force": 3, "age": 1})
+        super().__init__(capacity, {"position": 3, "velocity": 3, "force": 3, "age": 1, "smoke": 1}, {"smoke": 1.0})
 
 
 class VisualParticles(ParticleSet):

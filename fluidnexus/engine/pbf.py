@@ -226,6 +226,7 @@ class PBFSimulator:
         self.p, self.u, self.u_out, self.force = vec(cap), vec(cap), vec(cap), vec(cap)
         self.rho_pre = sca(cap)
         self.age = ti.field(f, shape=cap)
+        self.smoke = ti.field(f, shape=cap)
         self.x = vec(solver.iterations + 1, cap)
         self.rho, self.gsq, self.lam = sca(its, cap), sca(its, cap), sca(its, cap)
         self.gsum, self.dp = vec(its, cap), vec(its, cap)
@@ -269,8 +270,9 @@ class PBFSimulator:
             raise ValueError(f"theta has {t.shape[0]} entries, model expects {len(self.model.param_names())}")
         tensors.load(self.theta, t)
 
-    def load(self, p, u, age=None) -> None:
-        """Set the start-of-step state: positions p [N, 3] m, velocities u [N, 3] m/s, ages [N] s (default 0)."""
+    def load(self, p, u, age=None, smoke=None) -> None:
+        """Set the start-of-step state: positions p [N, 3] m, velocities u [N, 3] m/s, ages [N] s (default 0),
+        smoke weights [N] (default 1: every particle is smoke; 0 marks ambient air, which buoyancy skips)."""
         p, u = tensors.as_tensor(p, 3), tensors.as_tensor(u, 3)
         if p.shape != u.shape:
             raise ValueError(f"p {tuple(p.shape)} and u {tuple(u.shape)} differ")
@@ -282,6 +284,9 @@ class PBFSimulator:
         self.age.fill(0)
         if age is not None:
             tensors.load(self.age, tensors.as_tensor(age).reshape(-1, 1))
+        self.smoke.fill(1)
+        if smoke is not None:
+            tensors.load(self.smoke, tensors.as_tensor(smoke).reshape(-1, 1))
         self.token = None
 
     # ------------------------------------------------------------------ step
@@ -313,7 +318,7 @@ class PBFSimulator:
                          self.rho_pre, adjoint=density_adjoint)
         for term, off in zip(self.model.terms, self._offsets):
             ctx = _Context(fast=FAST, n=n, dt=s.dt, h=h, w_coef=wc, g_coef=gc, rho0=s.rest_density, p=self.p, u=self.u,
-                           age=self.age, rho=self.rho_pre, force=self.force, theta=self.theta,
+                           age=self.age, smoke=self.smoke, rho=self.rho_pre, force=self.force, theta=self.theta,
                            nbr=self.pre_table.nbr, count=self.pre_table.count, record=self._record,
                            workspace={name: self._workspaces[(term.kind, name)] for name, _ in term.workspace})
             term.launch(ctx, off)
@@ -369,12 +374,13 @@ class PBFSimulator:
 
 
 @ti.kernel
-def _gather_state(n: int, pos: ti.template(), vel: ti.template(), age: ti.template(), p: ti.template(),
-                  u: ti.template(), age_out: ti.template()):
+def _gather_state(n: int, pos: ti.template(), vel: ti.template(), age: ti.template(), smoke: ti.template(),
+                  p: ti.template(), u: ti.template(), age_out: ti.template(), smoke_out: ti.template()):
     for i in range(n):
         p[i] = pos[i]
         u[i] = vel[i]
         age_out[i] = age[i]
+        smoke_out[i] = smoke[i]
 
 
 @ti.kernel
@@ -394,7 +400,7 @@ def step_particles(sim: PBFSimulator, particles) -> None:
         raise ValueError(f"{n} particles exceed the simulator capacity {sim.capacity}")
     f = particles.fields
     sim.n = n
-    _gather_state(n, f["position"], f["velocity"], f["age"], sim.p, sim.u, sim.age)
+    _gather_state(n, f["position"], f["velocity"], f["age"], f["smoke"], sim.p, sim.u, sim.age, sim.smoke)
     sim.forward()
     _scatter_state(n, sim.solver.iterations, sim.solver.dt, sim.x, sim.u_out, sim.force, f["position"],
                    f["velocity"], f["force"], f["age"])

@@ -25,7 +25,7 @@ Four refinements over a warp about one fixed axis:
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -39,7 +39,8 @@ class AxisymConfig:
     """Settings of the axisymmetric synthesiser.
 
     Attributes:
-        axis_sigma_m: Gaussian smoothing of the axis offset along height, metres.
+        axis_sigma_m: Gaussian smoothing of the axis offset along height, metres (ScalarFlow's scale; ``synth``
+            applies :meth:`scaled` with the scene's length scale, as to ``depth_spread_m``).
         axis_sigma_frames: Gaussian smoothing of the axis offset along time, frames.
         axis_prior: weight of the source position in the axis fit, in units of a row's summed intensity
             (a row holding much less smoke than this stays near the vertical through the source).
@@ -61,6 +62,11 @@ class AxisymConfig:
     path_factor: bool = True
     iterations: int = 3
     depth_spread_m: float = 0.02
+
+    def scaled(self, factor: float) -> "AxisymConfig":
+        """The settings for a scene ``factor`` times ScalarFlow's size (``fluidnexus.scene_scale``): the two
+        lengths, ``axis_sigma_m`` and ``depth_spread_m``, are multiplied by it."""
+        return replace(self, axis_sigma_m=self.axis_sigma_m * factor, depth_spread_m=self.depth_spread_m * factor)
 
 
 # ---- geometry -------------------------------------------------------------------------------------------

@@ -58,7 +58,7 @@ def with_buoyancy_drag(model: ModelConfig, alpha: float, k: float) -> ModelConfi
         elif t.kind == "drag":
             t = replace(t, k=float(k))
         terms.append(t)
-    return ModelConfig(tuple(terms))
+    return replace(model, terms=tuple(terms))
 
 
 def calibrate(run: Run, ctx: RunContext, first: int, window: int = DEFAULT_WINDOW) -> Calibration | None:

@@ -71,7 +71,7 @@ def with_wind(model: ModelConfig, accel, profile: str, y0: float, height: float)
         raise InputError(None, "--profile", f"must be one of {sorted(WIND_PROFILES)}, got {profile!r}")
     wind = Wind(accel=tuple(float(a) for a in accel), profile=WIND_PROFILES[profile], y0=float(y0),
                 height=float(height))
-    return ModelConfig(tuple(t for t in model.terms if t.kind != "wind") + (wind,))
+    return replace(model, terms=tuple(t for t in model.terms if t.kind != "wind") + (wind,))
 
 
 def workspace_for(smoke: Smoke, frames: int, ctx: RunContext, model: ModelConfig) -> Workspace:

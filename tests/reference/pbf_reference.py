@@ -81,8 +81,8 @@ def _term_params(model, theta):
     return out
 
 
-def forces(p, u, age, model, theta, solver, pairs):
-    """Sum of the external accelerations [N, 3] at the start-of-step state."""
+def forces(p, u, age, model, theta, solver, pairs, smoke=None):
+    """Sum of the external accelerations [N, 3] at the start-of-step state (buoyancy times the smoke weight)."""
     h, dt, rho0 = solver.h, solver.dt, solver.rest_density
     prm = _term_params(model, theta)
     rho = density(p, pairs, h)
@@ -92,7 +92,8 @@ def forces(p, u, age, model, theta, solver, pairs):
     for t in model.terms:
         q = prm[t.kind]
         if t.kind == "buoyancy":
-            f = f + (q["alpha"] * torch.exp(-q["decay"] * age))[:, None] * torch.tensor(t.gravity, dtype=p.dtype)
+            w = torch.ones_like(age) if smoke is None else smoke
+            f = f + (q["alpha"] * torch.exp(-q["decay"] * age) * w)[:, None] * torch.tensor(t.gravity, dtype=p.dtype)
         elif t.kind == "drag":
             w = torch.clamp(1.0 - rho / rho0, min=0.0)
             f = f - q["k"] * w[:, None] * (u - q["v_env"])
@@ -115,11 +116,11 @@ def forces(p, u, age, model, theta, solver, pairs):
     return f
 
 
-def step(p, u, theta, model, solver, age=None, pairs_fn=pairs_dense):
+def step(p, u, theta, model, solver, age=None, pairs_fn=pairs_dense, smoke=None):
     """One PBF step (FluidNexus Eq. S1-S3); returns (p1, u1). Tables at p (terms) and p_hat (solver)."""
     h, dt, rho0 = solver.h, solver.dt, solver.rest_density
     age = torch.zeros(len(p), dtype=p.dtype) if age is None else age
-    f = forces(p, u, age, model, theta, solver, pairs_fn(p, h))
+    f = forces(p, u, age, model, theta, solver, pairs_fn(p, h), smoke)
     x = p + dt * (u + dt * f)
     i, j = pairs_fn(x, h)
     n = len(p)
