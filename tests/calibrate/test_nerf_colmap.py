@@ -64,3 +64,22 @@ def test_from_colmap(tmp_path, make_video):
         assert v.role == "input"
         np.testing.assert_allclose(v.camera.K, cams[v.name].K, atol=1e-9)
         np.testing.assert_allclose(v.camera.w2c, cams[v.name].w2c, atol=1e-9)
+
+
+def test_from_nerf_in_centimetres(tmp_path, make_video):
+    """A transforms.json written in centimetres, imported with --metres-per-unit 0.01, gives the metric rig."""
+    cams = rig()
+    frames = []
+    for name, cam in cams.items():
+        make_video(tmp_path / f"{name}.mp4", frames=3)
+        c2w = np.array(cam.to_nerf()["transform_matrix"])
+        c2w[:3, 3] *= 100.0
+        frames.append({"file_path": f"./{name}", "transform_matrix": c2w.tolist(), "fl_x": float(cam.K[0, 0])})
+    (tmp_path / "transforms.json").write_text(json.dumps({"frames": frames}))
+    result = CliRunner().invoke(main, ["calibrate", "--from-nerf", str(tmp_path / "transforms.json"),
+                                       "--metres-per-unit", "0.01", "--out", str(tmp_path / "s")])
+    assert result.exit_code == 0, result.output
+    scene = load_scene(tmp_path / "s")
+    assert scene.source_frame.metres_per_unit == 0.01
+    for v in scene.views:
+        np.testing.assert_allclose(v.camera.w2c, cams[v.name].w2c, atol=1e-12)
