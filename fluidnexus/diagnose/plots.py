@@ -4,11 +4,13 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-COLORS = {"observed": (40, 40, 40), "base model": (200, 90, 30), "extended model": (30, 30, 210)}
+COLORS = {"observed": (40, 40, 40), "paper's gas": (200, 90, 30), "gas in ambient air": (30, 160, 220),
+          "extended model": (30, 30, 210)}
 
 
 def line_plot(path, title: str, x: np.ndarray, series: dict, xlabel: str, ylabel: str, marks=()) -> None:
-    """Write a PNG of ``series`` (label -> values over ``x``); ``marks`` are x positions drawn as dashed lines."""
+    """Write a PNG of ``series`` (label -> values over ``x``, or over ``x[label]`` when ``x`` is a dict of one x
+    array per series); ``marks`` are x positions drawn as dashed lines."""
     W, H, L, R, T, B = 640, 400, 70, 20, 40, 50
     img = np.full((H, W, 3), 255, np.uint8)
     vals = np.concatenate([np.asarray(v, float)[np.isfinite(v)] for v in series.values()] + [np.zeros(0)])
@@ -17,7 +19,8 @@ def line_plot(path, title: str, x: np.ndarray, series: dict, xlabel: str, ylabel
         lo, hi = lo - 0.5, hi + 0.5
     pad = 0.05 * (hi - lo)
     lo, hi = lo - pad, hi + pad
-    x = np.asarray(x, float)
+    xs = {k: np.asarray(x[k] if isinstance(x, dict) else x, float) for k in series}
+    x = np.concatenate(list(xs.values()) + [np.zeros(0)])
     x0 = float(np.nanmin(x)) if np.isfinite(x).any() else 0.0
     x1 = float(np.nanmax(x)) if np.isfinite(x).any() else 1.0
     x1 = max(x1, x0 + 1e-9)
@@ -36,7 +39,7 @@ def line_plot(path, title: str, x: np.ndarray, series: dict, xlabel: str, ylabel
             cv2.line(img, (px(m, lo)[0], yy), (px(m, lo)[0], yy + 4), (150, 150, 150), 1)
     for i, (label, v) in enumerate(series.items()):
         color = COLORS.get(label, (0, 150, 0))
-        pts = [px(a, b) for a, b in zip(x, np.asarray(v, float)) if np.isfinite(a) and np.isfinite(b)]
+        pts = [px(a, b) for a, b in zip(xs[label], np.asarray(v, float)) if np.isfinite(a) and np.isfinite(b)]
         if len(pts) > 1:
             cv2.polylines(img, [np.array(pts, np.int32)], False, color, 2, cv2.LINE_AA)
         cv2.putText(img, label, (L + 10 + 170 * i, T - 10), cv2.FONT_HERSHEY_SIMPLEX, 0.45, color, 1, cv2.LINE_AA)

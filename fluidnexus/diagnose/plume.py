@@ -1,8 +1,12 @@
-"""The simulated plume of diagnose: the paper's PBF gas (buoyancy alpha, drag k) seeded by the scene's source,
-with the candidate extensions, rolled forward and rendered into the observation views.
+"""The simulated plume of diagnose in one of two structures, with the candidate extensions, rolled forward and
+rendered into the observation views.
+
+- ``paper_gas``: the paper's PBF gas (buoyancy alpha, drag k) emitted by the scene's source disk;
+- ``ambient_air``: the gas in ambient air (engine/ambient.py: buoyancy alpha on smoke, XSPH viscosity c among
+  smoke and air, the source as an inlet of speed ``inflow``), on a lattice ``AIR_SPACING`` x coarser.
 
 The rollout is the engine's PBF step (FluidNexus Eq. S1-S4) at a coarse particle spacing; the smoke seen in
-the images is carried by the physical particles themselves, each with brightness ``gain * exp(-rate * age)``.
+the images is carried by the smoke particles themselves, each with brightness ``gain * exp(-rate * age)``.
 """
 from __future__ import annotations
 
@@ -10,8 +14,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from fluidnexus.engine import (Buoyancy, Drag, ModelConfig, PBFSimulator, PhysicalParticles, SolverConfig,
-                               SourceDisk, Viscosity, Vorticity, prune, rest_density_for_lattice, step_particles)
+from fluidnexus.engine import (AirDomain, AmbientAir, Buoyancy, Drag, ModelConfig, PBFSimulator, PhysicalParticles,
+                               SolverConfig, SourceDisk, Viscosity, Vorticity, prune, rest_density_for_lattice,
+                               step_particles)
 
 from .observe import splat_points
 
@@ -24,6 +29,11 @@ EXTENSIONS = {
     "dissipation": {"rate": 0.0},             # smoke fading [1/s]
     "swirl": {"omega": 0.0},                  # inflow angular velocity about +y [rad/s]
 }
+#: The base structures (engine/ambient.py): the paper's gas in empty space, the gas in ambient air.
+STRUCTURES = ("paper_gas", "ambient_air")
+#: The ambient-air structure's lattice ratios follow this multiple of ``--spacing`` (0.03 m for the default 0.02 m):
+#: its air costs several thousand particles per plume (docs/diagnose.md).
+AIR_SPACING = 1.5
 
 
 @dataclass(frozen=True)
@@ -32,11 +42,14 @@ class PlumeParams:
 
     Attributes:
         alpha: buoyancy coefficient (< 0 rises; FluidNexus Eq. S1).
-        k: drag coefficient [1/s] (Eq. S4).
+        k: drag coefficient [1/s] (Eq. S4; paper_gas only).
         layers: source rate: disk layers emitted per second (at most one per step); the layers leave the
-            source at the inflow speed ``layers x spacing`` m/s so that they do not pile up.
+            source at the inflow speed ``layers x spacing`` m/s so that they do not pile up (paper_gas only).
         gain: brightness of one particle's smoke; fitted in closed form.
         extensions: active extensions, name -> {param: value} (names and parameters of :data:`EXTENSIONS`).
+        structure: ``paper_gas`` or ``ambient_air`` (:data:`STRUCTURES`).
+        inflow: the inlet speed [m/s] (ambient_air only).
+        c: XSPH viscosity among smoke and air (ambient_air only; the ``viscosity`` extension refits it).
     """
 
     alpha: float = -3.0
@@ -44,6 +57,9 @@ class PlumeParams:
     layers: float = 10.0
     gain: float = 1.0
     extensions: dict = field(default_factory=dict)
+    structure: str = "paper_gas"
+    inflow: float = 0.25
+    c: float = 0.0
 
     def ext(self, name: str, key: str):
         return self.extensions.get(name, EXTENSIONS[name])[key]
@@ -51,8 +67,15 @@ class PlumeParams:
     def model(self) -> ModelConfig:
         """The engine model of these parameters (the extensions that are forces included)."""
         tau = self.ext("buoyancy_decay", "tau")
-        terms = [Buoyancy(alpha=self.alpha, decay=0.0 if not np.isfinite(tau) else 1.0 / tau),
-                 Drag(k=self.k, v_env=tuple(float(v) for v in self.ext("wind", "velocity")))]
+        buoyancy = Buoyancy(alpha=self.alpha, decay=0.0 if not np.isfinite(tau) else 1.0 / tau)
+        wind = tuple(float(v) for v in self.ext("wind", "velocity"))
+        if self.structure == "ambient_air":  # wind is the air's motion; XSPH among smoke and air is in the base
+            c = float(self.ext("viscosity", "c")) if "viscosity" in self.extensions else self.c
+            terms = [buoyancy, Viscosity(c=c)]
+            if "vorticity" in self.extensions:
+                terms.append(Vorticity(epsilon=float(self.ext("vorticity", "epsilon"))))
+            return ModelConfig(tuple(terms), AmbientAir(inflow=self.inflow, wind=wind))
+        terms = [buoyancy, Drag(k=self.k, v_env=wind)]
         if "vorticity" in self.extensions:
             terms.append(Vorticity(epsilon=float(self.ext("vorticity", "epsilon"))))
         if "viscosity" in self.extensions:
@@ -74,6 +97,7 @@ class PlumeSetup:
         frames: number of frames rolled out (the first is the initial state).
         lo, hi: particles leaving this box [m] are removed.
         seed: [M, 3] particles present at the first frame (e.g. from the visual hull) [m].
+        air_seed: the same for the ambient-air structure, on its coarser lattice [m].
         iterations: PBF solver iterations per step.
     """
 
@@ -85,13 +109,24 @@ class PlumeSetup:
     lo: tuple
     hi: tuple
     seed: np.ndarray
+    air_seed: np.ndarray
     iterations: int = 4
+
+    def solver_for(self, structure: str) -> SolverConfig:
+        """The solver of a structure: H and rho0 follow its lattice (``spacing``, or ``AIR_SPACING`` x coarser)."""
+        spacing = self.spacing * (AIR_SPACING if structure == "ambient_air" else 1.0)
+        h = spacing / 0.45  # the release's 0.009 m lattice at H = 0.02 m
+        return SolverConfig(h=h, rest_density=rest_density_for_lattice(spacing, h, 1.44),
+                            iterations=self.iterations, dt=1.0 / self.fps)
 
     @property
     def solver(self) -> SolverConfig:
-        h = self.spacing / 0.45  # the release's 0.009 m lattice at H = 0.02 m
-        return SolverConfig(h=h, rest_density=rest_density_for_lattice(self.spacing, h, 1.44),
-                            iterations=self.iterations, dt=1.0 / self.fps)
+        return self.solver_for("paper_gas")
+
+    def domain(self, air: AmbientAir) -> AirDomain:
+        """The air around the source (ambient_air), inside the box [lo, hi]."""
+        s = self.solver_for("ambient_air")
+        return AirDomain(air, s.h, s.rest_density, s.dt, self.source_center, self.source_radius, self.lo, self.hi)
 
     @property
     def source(self) -> SourceDisk:
@@ -118,19 +153,21 @@ class PlumeSimulator:
         self._sims: dict = {}
         self._particles = PhysicalParticles(setup.capacity)
 
-    def _simulator(self, model: ModelConfig) -> PBFSimulator:
-        kinds = tuple(t.kind for t in model.terms)
+    def _simulator(self, model: ModelConfig, capacity: int) -> PBFSimulator:
+        kinds = (model.structure,) + tuple(t.kind for t in model.terms)
         sim = self._sims.get(kinds)
         if sim is None:
-            sim = self._sims[kinds] = PBFSimulator(self.setup.capacity, self.setup.solver, model)
+            sim = self._sims[kinds] = PBFSimulator(capacity, self.setup.solver_for(model.structure), model)
         else:
             sim.load_theta(model.to_vector())
         return sim
 
     def rollout(self, params: PlumeParams) -> Rollout:
-        """Simulate ``setup.frames`` frames (one PBF step per frame, emission before each step)."""
+        """Simulate ``setup.frames`` frames (one PBF step per frame; paper_gas: emission before each step)."""
+        if params.structure == "ambient_air":
+            return self._rollout_air(params)
         s = self.setup
-        sim = self._simulator(params.model())
+        sim = self._simulator(params.model(), s.capacity)
         particles = self._particles
         particles.keep(np.zeros(particles.n, bool))
         if len(s.seed):
@@ -154,6 +191,20 @@ class PlumeSimulator:
             prune(particles, None, s.solver.h, s.lo, s.hi)
             out.positions.append(particles.get("position").copy())
             out.ages.append(particles.get("age").ravel().copy())
+        return out
+
+    def _rollout_air(self, params: PlumeParams) -> Rollout:
+        """The gas in ambient air: the seed as smoke in air at rest, the inlet (with the swirl) feeding it."""
+        s, model = self.setup, params.model()
+        domain = s.domain(model.air)
+        sim = self._simulator(model, domain.capacity(len(s.air_seed)))
+        state = domain.initial(s.air_seed)
+        omega = float(params.ext("swirl", "omega"))
+        out = Rollout([state.p[state.is_smoke].copy()], [state.age[state.is_smoke].copy()])
+        for _ in range(1, s.frames):
+            state = domain.step(sim, state, omega)
+            out.positions.append(state.p[state.is_smoke].copy())
+            out.ages.append(state.age[state.is_smoke].copy())
         return out
 
 

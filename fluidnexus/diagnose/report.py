@@ -9,6 +9,7 @@ from fluidnexus.atomic import write_json
 
 from .observe import observables
 from .plots import line_plot
+from .plume import AIR_SPACING
 from .search import MAX_P_VALUE, MIN_RELATIVE_GAIN, SPREAD_TOLERANCE
 
 MODEL_FORMAT = "fluidnexus-model/1"
@@ -22,21 +23,34 @@ def _jsonable(params: dict) -> dict:
     return out
 
 
+def structure_params(params) -> dict:
+    """report.json's ``structure.params``: what the base model of the structure fitted."""
+    if params.structure == "ambient_air":
+        air = params.model().air
+        return {"alpha": params.alpha, "viscosity_c": params.c, "inflow": params.inflow, "margin": air.margin,
+                "below": air.below}
+    return {"alpha": params.alpha, "drag_k": params.k, "layers_per_second": params.layers}
+
+
 def model_dict(fit, setup) -> dict:
-    """model.json: the engine model (``ModelConfig.to_dict``), the appearance and source extensions."""
+    """model.json: the engine model (``ModelConfig.to_dict``, its structure included), the appearance and source
+    extensions."""
     p = fit.params
-    return {"format": MODEL_FORMAT, "model": p.model().to_dict(), "solver": setup.solver.to_dict(),
+    spacing = setup.spacing * (AIR_SPACING if p.structure == "ambient_air" else 1.0)
+    return {"format": MODEL_FORMAT, "model": p.model().to_dict(), "solver": setup.solver_for(p.structure).to_dict(),
             "source": {"center": list(setup.source_center), "radius": setup.source_radius,
-                       "spacing": setup.spacing, "swirl_omega": float(p.ext("swirl", "omega"))},
+                       "spacing": spacing, "swirl_omega": float(p.ext("swirl", "omega"))},
             "appearance": {"gain": p.gain, "dissipation_rate": float(p.ext("dissipation", "rate"))},
             "extensions": {k: _jsonable(v) for k, v in p.extensions.items()}}
 
 
-def write_outputs(out_dir: Path, observed, base, fits: dict, judged: dict, finding: str, train, validate,
-                  fitter, spread: tuple[int, float], seconds: float) -> dict:
+def write_outputs(out_dir: Path, observed, bases: dict, structure: str, fits: dict, judged: dict, finding: str,
+                  train, validate, fitter, spread: tuple[int, float], seconds: float) -> dict:
+    """``bases``: the control fit of each structure; ``structure``: the chosen one."""
     out_dir.mkdir(parents=True, exist_ok=True)
     a = train[0]
     va = np.arange(validate[0] - a, validate[1] - a)
+    base = bases[structure]
     chosen = fits[finding] if finding != "none" else base
     candidates = [{"effect": n, "params": _jsonable(fits[n].params.extensions[n]),
                    "validate_before": judged[n].before, "validate_after": judged[n].after,
@@ -48,21 +62,28 @@ def write_outputs(out_dir: Path, observed, base, fits: dict, judged: dict, findi
                                    "after": float(chosen.errors[va].mean())}},
               "candidates": candidates,
               "windows": {"train": list(train), "validate": list(validate)},
-              "views": list(observed.names)}
+              "views": list(observed.names),
+              "structure": {"name": structure, "params": structure_params(base.params),
+                            "gain": {"metric": "validation_image_error",
+                                     "before": float(bases["paper_gas"].errors[va].mean()), "after": b_err}}}
     write_json(out_dir / "report.json", report)
     write_json(out_dir / "model.json", model_dict(chosen, fitter.sim.setup))
-    plots = _plots(out_dir, observed, base, chosen, finding, train, validate)
-    text = _markdown(report, observed, base, fits, judged, finding, va, plots, fitter, spread, seconds)
+    plots = _plots(out_dir, observed, bases, chosen, finding, train, validate)
+    text = _markdown(report, observed, bases, structure, fits, judged, finding, va, plots, fitter, spread, seconds)
     (out_dir / "report.md").write_text(text)
     return report
 
 
-def _plots(out_dir, observed, base, chosen, finding, train, validate) -> dict:
+STRUCTURE_LABELS = {"paper_gas": "paper's gas", "ambient_air": "gas in ambient air"}
+
+
+def _plots(out_dir, observed, bases, chosen, finding, train, validate) -> dict:
     cams, fps = observed.cameras, observed.fps
-    o, s0, s1 = (observables(x, cams, fps) for x in (observed.images, base.images, chosen.images))
+    o, s1 = (observables(x, cams, fps) for x in (observed.images, chosen.images))
+    models = {name: observables(fit.images, cams, fps) for name, fit in bases.items()}
     frames = np.arange(observed.first, observed.first + observed.images.shape[1])
-    label = "extended model" if finding != "none" else "base model"
-    runs = {"observed": o, "base model": s0}
+    label = "extended model"
+    runs = {"observed": o, **{STRUCTURE_LABELS[name]: q for name, q in models.items()}}
     if finding != "none":
         runs[label] = s1
     marks = (train[1], validate[0])
@@ -80,18 +101,54 @@ def _plots(out_dir, observed, base, chosen, finding, train, validate) -> dict:
         line_plot(out_dir / fname, title, frames, {k: get(q) for k, q in runs.items()}, "frame", "", marks)
         written[fname] = title
     line_plot(out_dir / "width_vs_height.png", "width [m] versus front height [m] (x axis: height x 100)",
-              o.front * 100, {"observed": o.width}, "front height [cm]", "width")
-    errs = {"base model": base.errors}
+              {k: q.front * 100 for k, q in runs.items()}, {k: q.width for k, q in runs.items()},
+              "front height [cm]", "width")
+    errs = {STRUCTURE_LABELS[name]: fit.errors for name, fit in bases.items()}
     if finding != "none":
         errs[label] = chosen.errors
     line_plot(out_dir / "image_error.png", "image error per frame (relative)", frames, errs, "frame", "", marks)
     written["image_error.png"] = "image error per frame"
-    written["width_vs_height.png"] = "width versus height (observed)"
-    return {"observed": o, "base": s0, "chosen": s1, "files": written}
+    written["width_vs_height.png"] = "width versus front height"
+    return {"observed": o, "models": models, "chosen": s1, "files": written}
 
 
-def _markdown(report, observed, base, fits, judged, finding, va, plots, fitter, spread, seconds) -> str:
-    o, s0, s1 = plots["observed"], plots["base"], plots["chosen"]
+def _structure_text(report, observed, bases, structure, plots, va) -> list[str]:
+    """The structure section of report.md: widths and validation errors of both structures, in plain words."""
+    o, models = plots["observed"], plots["models"]
+    pg, aa = models["paper_gas"], models["ambient_air"]
+    ok = np.isfinite(o.width) & np.isfinite(pg.width) & np.isfinite(aa.width)
+    start = np.flatnonzero(ok & (np.arange(len(ok)) >= min(5, len(ok) - 1)))
+    e_pg, e_aa = (float(bases[n].errors[va].mean()) for n in ("paper_gas", "ambient_air"))
+    gain = (e_pg - e_aa) / max(e_pg, 1e-12)
+    if not len(start) or not ok[-1]:
+        widths = "The plume widths cannot be compared (a model shows no smoke in some frames)."
+        narrow = ""
+    else:
+        k0, k1 = observed.first + start[0], observed.first + len(ok) - 1
+        w = {name: (q.width[start[0]], q.width[-1]) for name, q in (("o", o), ("pg", pg), ("aa", aa))}
+        grow_o, grow_pg = w["o"][1] - w["o"][0], w["pg"][1] - w["pg"][0]
+        narrow = ("stays too narrow: it has no air to entrain. " if grow_pg < 0.5 * grow_o and w["pg"][1] < w["o"][1]
+                  else "is too wide. " if w["pg"][1] > 1.1 * w["o"][1] else "widens about as the real one. ")
+        widths = (f"From frame {k0} to {k1} the paper's gas widens from {w['pg'][0]:.3f} to {w['pg'][1]:.3f} m where "
+                  f"the real plume widens from {w['o'][0]:.3f} to {w['o'][1]:.3f} m; in ambient air the simulated "
+                  f"plume widens from {w['aa'][0]:.3f} to {w['aa'][1]:.3f} m.")
+    if structure == "ambient_air":
+        verdict = (f"In ambient air the validation error falls from {e_pg:.4f} to {e_aa:.4f} "
+                   f"({100 * gain:.0f} % lower): the candidates below extend the gas in ambient air.")
+    else:
+        verdict = (f"In ambient air the validation error is {e_aa:.4f} against the paper's gas {e_pg:.4f} "
+                   f"({100 * gain:+.0f} % lower), not clearly lower: the candidates below extend the paper's gas.")
+    p = report["structure"]["params"]
+    text = ", ".join(f"{k} {v:.3g}" for k, v in p.items())
+    return [f"## Structure: {structure}", "",
+            f"The simulated plume of the paper's gas {narrow}{widths} {verdict} (Chosen like a term: relative gain "
+            f">= {100 * MIN_RELATIVE_GAIN:.0f} % and one-sided Wilcoxon p < {MAX_P_VALUE} over the validation "
+            f"frames; each structure's base model refitted on the training frames. Base model: {text}.)", ""]
+
+
+def _markdown(report, observed, bases, structure, fits, judged, finding, va, plots, fitter, spread, seconds) -> str:
+    o, s0, s1 = plots["observed"], plots["models"][structure], plots["chosen"]
+    base = bases[structure]
     last = observed.first + observed.images.shape[1] - 1
     dx = o.centroid[-1] - s0.centroid[-1]
     di = (s0.intensity[-1] - o.intensity[-1]) / max(o.intensity[-1], 1e-12)
@@ -99,15 +156,15 @@ def _markdown(report, observed, base, fits, judged, finding, va, plots, fitter, 
              f"Views used ({len(observed.names)}): {', '.join(observed.names)}. Training frames "
              f"{report['windows']['train'][0]}:{report['windows']['train'][1]}, validation frames "
              f"{report['windows']['validate'][0]}:{report['windows']['validate'][1]} (half-open). "
-             f"{fitter.evaluations} rollouts, {seconds:.0f} s.", "",
-             "## What the base model gets wrong", "",
-             f"Base model (buoyancy alpha {base.params.alpha:.3g}, drag k {base.params.k:.2f} 1/s, source "
-             f"{base.params.layers:.1f} layers/s) fitted on the "
-             f"training frames. By frame {last} the real plume's centroid is "
-             f"{100 * dx[0]:+.1f} cm in x, {100 * dx[1]:+.1f} cm in y and {100 * dx[2]:+.1f} cm in z from the "
-             f"simulated one; the simulated plume shows {abs(100 * di):.0f} % {'more' if di > 0 else 'less'} "
-             f"smoke than the real one; front height real {o.front[-1]:.3f} m, simulated {s0.front[-1]:.3f} m; "
-             f"width real {o.width[-1]:.3f} m, simulated {s0.width[-1]:.3f} m.", ""]
+             f"{fitter.evaluations} rollouts, {seconds:.0f} s.", ""]
+    lines += _structure_text(report, observed, bases, structure, plots, va)
+    lines += ["## What the base model gets wrong", "",
+              f"Base model ({_base_text(base.params)}) fitted on the "
+              f"training frames. By frame {last} the real plume's centroid is "
+              f"{100 * dx[0]:+.1f} cm in x, {100 * dx[1]:+.1f} cm in y and {100 * dx[2]:+.1f} cm in z from the "
+              f"simulated one; the simulated plume shows {abs(100 * di):.0f} % {'more' if di > 0 else 'less'} "
+              f"smoke than the real one; front height real {o.front[-1]:.3f} m, simulated {s0.front[-1]:.3f} m; "
+              f"width real {o.width[-1]:.3f} m, simulated {s0.width[-1]:.3f} m.", ""]
     g = report["finding"]["gain"]
     if finding == "none":
         lines += ["## Finding: none", "",
@@ -143,6 +200,13 @@ def _markdown(report, observed, base, fits, judged, finding, va, plots, fitter, 
     lines += ["", f"Metric: {report['finding']['gain']['metric']} = the {_METRIC_TEXT}.", "", "## Plots", ""]
     lines += [f"- {title}: ![{title}]({name})" for name, title in plots["files"].items()]
     return "\n".join(lines) + "\n"
+
+
+def _base_text(p) -> str:
+    if p.structure == "ambient_air":
+        return (f"the gas in ambient air: buoyancy alpha {p.alpha:.3g} on smoke, XSPH viscosity c {p.c:.3f} among smoke "
+                f"and air, inlet {p.inflow:.3f} m/s")
+    return f"the paper's gas: buoyancy alpha {p.alpha:.3g}, drag k {p.k:.2f} 1/s, source {p.layers:.1f} layers/s"
 
 
 _METRIC_TEXT = "mean over validation frames and views of the squared difference between real and simulated " \

@@ -1,5 +1,6 @@
-"""The diagnose procedure (docs/diagnose.md): load measured views, fit the base model on the training window,
-refit each candidate extension, judge on the validation window, write the report and the extended model."""
+"""The diagnose procedure (docs/diagnose.md): load measured views, fit the base model of each structure on the
+training window and choose the structure on the validation window, refit each candidate extension on top of it,
+judge on the validation window, write the report and the extended model."""
 from __future__ import annotations
 
 import logging
@@ -14,7 +15,7 @@ from fluidnexus.scene_scale import scene_factor
 from fluidnexus.video import read_video
 
 from .observe import Observed, observables
-from .plume import EXTENSIONS, PlumeSetup, PlumeSimulator
+from .plume import AIR_SPACING, EXTENSIONS, STRUCTURES, PlumeSetup, PlumeSimulator
 from .report import write_outputs
 from .search import SPREAD_TOLERANCE, Fitter, fit_base, fit_candidate, judge, search_spread
 
@@ -102,8 +103,9 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
         lo = np.asarray(src[0]) - factor * np.array([0.3, 0.05, 0.3])
         hi = np.asarray(src[0]) + factor * np.array([0.3, 0.8, 0.3])
     seed = visual_hull(observed, lo, hi, spacing)
+    air_seed = visual_hull(observed, lo, hi, spacing * AIR_SPACING)
     setup = PlumeSetup(tuple(src[0]), float(src[1]), spacing, observed.fps, d - a, tuple(lo - 0.1 * factor), tuple(hi + 0.1 * factor),
-                       seed)
+                       seed, air_seed)
     sim = PlumeSimulator(setup)
     cams = observed.cameras
     # particle footprint: the source spacing seen from the mean camera distance
@@ -113,12 +115,22 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
     fitter = Fitter(sim, observed.images, cams, sigma, tr)
     log.info("diagnose: %d views (%s), %d frames at %dx%d, %d seeded particles", len(cams),
              ", ".join(observed.names), d - a, cams[0].width, cams[0].height, len(seed))
-    base = fit_base(fitter, 2 * maxfev)
-    log.info("base fit: alpha %.3f k %.3f layers %.1f/s gain %.4g, train error %.4f, validation error %.4f",
-             base.params.alpha, base.params.k, base.params.layers, base.params.gain, fitter.train_error(base), base.errors[va].mean())
-    base = fit_candidate(fitter, base, None, maxfev)
-    log.info("control refit (alpha only): alpha %.4f, train error %.4f, validation error %.4f", base.params.alpha,
-             fitter.train_error(base), base.errors[va].mean())
+    bases = {}
+    for structure in STRUCTURES:  # the base model of each structure, then its control refit (alpha alone)
+        fit = fit_base(fitter, 2 * maxfev, structure)
+        log.info("base fit (%s): %s gain %.4g, train error %.4f, validation error %.4f", structure,
+                 _describe(fit.params), fit.params.gain, fitter.train_error(fit), fit.errors[va].mean())
+        fit = fit_candidate(fitter, fit, None, maxfev)
+        log.info("control refit (%s, alpha only): alpha %.4f, train error %.4f, validation error %.4f", structure,
+                 fit.params.alpha, fitter.train_error(fit), fit.errors[va].mean())
+        bases[structure] = fit
+    # the structure is chosen like a term: ambient_air if it lowers the validation error clearly (search.judge)
+    structure_judged = judge(bases["paper_gas"].errors[va], bases["ambient_air"].errors[va])
+    structure = "ambient_air" if structure_judged.passes else "paper_gas"
+    log.info("structure: %s (validation error paper_gas %.4f, ambient_air %.4f: gain %.1f %%, p %.2g)", structure,
+             structure_judged.before, structure_judged.after, 100 * structure_judged.relative_gain,
+             structure_judged.p_value)
+    base = bases[structure]
     obs_o = observables(observed.images, cams, observed.fps)
     base_o = observables(base.images, cams, observed.fps)
     drift = _drift_velocity(obs_o.centroid[tr] - base_o.centroid[tr], observed.fps)
@@ -135,11 +147,17 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
              "validation error %.1f %% below the control's", spread[0], 100 * SPREAD_TOLERANCE, 100 * spread[1])
     passing = [n for n in candidates if judged[n].passes]
     finding = max(passing, key=lambda n: judged[n].relative_gain) if passing else "none"
-    report = write_outputs(out_dir, observed, base, fits, judged, finding, (a, b), (c, d), fitter, spread,
-                           time.perf_counter() - started)
+    report = write_outputs(out_dir, observed, bases, structure, fits, judged, finding, (a, b), (c, d), fitter,
+                           spread, time.perf_counter() - started)
     log.info("diagnose: finding %s (%d rollouts, %.0f s)", finding, fitter.evaluations,
              time.perf_counter() - started)
     return report
+
+
+def _describe(params) -> str:
+    if params.structure == "ambient_air":
+        return f"alpha {params.alpha:.3f} XSPH c {params.c:.3f} inflow {params.inflow:.3f} m/s"
+    return f"alpha {params.alpha:.3f} k {params.k:.3f} layers {params.layers:.1f}/s"
 
 
 def _drift_velocity(offsets: np.ndarray, fps: float) -> np.ndarray:

@@ -22,6 +22,7 @@ from fluidnexus.diagnose.observe import image_error
 from fluidnexus.diagnose.run import load_observed
 
 from .eulerian_plume import Grid, PlumeEffects, simulate, write_scene
+from .pbf_plume import simulate_pbf
 
 FRAMES, TRAIN, VALIDATE = 48, "0:32", "32:48"
 FAST = ["--height", "40", "--evals", "10", "--arch", "cpu"]
@@ -37,13 +38,21 @@ def template(tmp_path_factory):
 
 
 def run_diagnose(template, tmp_path, effects: PlumeEffects) -> dict:
-    scene = write_scene(template, tmp_path / "scene", simulate(FRAMES, effects))
+    return diagnose_density(template, tmp_path, simulate(FRAMES, effects))
+
+
+def diagnose_density(template, tmp_path, density: np.ndarray) -> dict:
+    """Diagnose a scene of ``density`` [FRAMES, nx, ny, nz] on the generator's grid; checks the outputs' form."""
+    scene = write_scene(template, tmp_path / "scene", density)
     out = tmp_path / "diag"
     result = CliRunner().invoke(main, ["diagnose", str(scene), "--out", str(out), "--train-frames", TRAIN,
                                        "--validate-frames", VALIDATE, *FAST])
     assert result.exit_code == 0, result.output + repr(result.exception)
     report = json.loads((out / "report.json").read_text())
-    assert set(report) == {"finding", "candidates", "windows", "views"}
+    assert set(report) == {"finding", "candidates", "windows", "views", "structure"}
+    assert report["structure"]["name"] in ("paper_gas", "ambient_air")
+    model = json.loads((out / "model.json").read_text())["model"]
+    assert model["structure"]["name"] == report["structure"]["name"]
     assert report["windows"] == {"train": [0, 32], "validate": [32, 48]}
     assert len(report["views"]) == 5
     assert {c["effect"] for c in report["candidates"]} == {"wind", "buoyancy_decay", "vorticity", "viscosity",
@@ -112,7 +121,17 @@ def test_hidden_effects_are_visible(template, tmp_path):
 
 
 def test_diagnose_plain_plume_finds_none(template, tmp_path, ti_engine):
+    """A plain grid plume rises in air: the gas in ambient air is the structure, and no term is found."""
     report = run_diagnose(template, tmp_path, PlumeEffects())
+    assert report["structure"]["name"] == "ambient_air", report["structure"]
+    assert report["finding"]["effect"] == "none", report["candidates"]
+
+
+def test_diagnose_pbf_gas_control_keeps_paper_gas(template, tmp_path, ti_engine):
+    """The control: a plume made by the paper's PBF gas itself (tests/diagnose/pbf_plume.py: a finer lattice,
+    jittered inflow) keeps the paper's gas as the structure, and no term is found."""
+    report = diagnose_density(template, tmp_path, simulate_pbf(FRAMES))
+    assert report["structure"]["name"] == "paper_gas", report["structure"]
     assert report["finding"]["effect"] == "none", report["candidates"]
 
 

@@ -6,6 +6,7 @@ import pytest
 
 from fluidnexus.camera import Camera
 from fluidnexus.diagnose.observe import observables, splat_points, triangulate
+from fluidnexus.diagnose.plume import PlumeParams
 from fluidnexus.diagnose.search import Fit, Fitter, judge, search_spread
 
 
@@ -50,12 +51,13 @@ def test_search_spread_counts_base_fits_the_training_frames_cannot_tell_apart():
     def errors(tr, va):
         return np.array([tr] * 4 + [va] * 2, float)
 
-    control = Fit(None, None, None, errors(0.10, 0.50))
-    fitter.scored += [((), control.errors),
-                      ((), errors(0.104, 0.40)),             # as good on training, 20 % better on validation
-                      ((), errors(0.20, 0.10)),              # better on validation, but not on training
-                      (("swirl",), errors(0.09, 0.05))]      # an extension: not the base model
+    control = Fit(PlumeParams(), None, None, errors(0.10, 0.50))
+    fitter.scored += [("paper_gas", (), control.errors),
+                      ("paper_gas", (), errors(0.104, 0.40)),           # as good on training, 20 % better on validation
+                      ("paper_gas", (), errors(0.20, 0.10)),            # better on validation, but not on training
+                      ("paper_gas", ("swirl",), errors(0.09, 0.05)),    # an extension: not the base model
+                      ("ambient_air", (), errors(0.10, 0.05))]          # the other structure: not this base model
     count, drop = search_spread(fitter, control, validate)
     assert count == 2 and drop == pytest.approx(0.2)
     # a control better on training than every scored base fit: nothing to compare, no spread
-    assert search_spread(fitter, Fit(None, None, None, errors(0.05, 0.5)), validate) == (0, 0.0)
+    assert search_spread(fitter, Fit(PlumeParams(), None, None, errors(0.05, 0.5)), validate) == (0, 0.0)
