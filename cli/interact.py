@@ -8,7 +8,7 @@ import click
 
 from fluidnexus.errors import InputError
 
-from .options import arch_option, start_engine
+from .options import arch_option, max_memory_option, start_engine
 from .predict import check_frames, future_context, make_refiner, model_options, refine_options
 
 log = logging.getLogger("fluidnexus")
@@ -31,10 +31,11 @@ log = logging.getLogger("fluidnexus")
 @click.option("--out", required=True, type=click.Path(path_type=Path, file_okay=False), help="New run folder.")
 @model_options
 @refine_options
+@max_memory_option
 @arch_option
 def interact(run_dir: Path, wind, profile, wind_height, ball, mesh_file, from_frame, frames, out, model_file, calibrate,
              calibrate_window, method, no_refit, anchor, weights, lora, strength, steps, seed, offload, device,
-             arch) -> None:
+             max_memory, arch) -> None:
     """Simulate N frames of RUN with a wind force and/or a rigid obstacle, then render, refine and re-fit.
 
     Writes OUT/videos/compare_<view>.mp4: without | with the interaction, from the input camera and a novel one.
@@ -44,12 +45,15 @@ def interact(run_dir: Path, wind, profile, wind_height, ball, mesh_file, from_fr
     fluidnexus interact runs/sf --ball 0.33,0.25,-0.25,0.05 --frames 30 --out runs/sf-ball
     fluidnexus interact runs/sf --mesh bunny.obj --frames 30 --out runs/sf-bunny --no-refit
     """
+    from fluidnexus.memory import parse_limit
     from fluidnexus.predict.rollout import parse_wind, with_wind
     from fluidnexus.predict.obstacle import parse_ball
     from fluidnexus.predict.session import (Interaction, check_new_run, comparison_videos, physics_baseline,
                                             simulate_future)
     from fluidnexus.runs import open_run
+    from fluidnexus.scene_scale import scene_factor
 
+    limit = parse_limit(max_memory)
     check_frames(frames)
     check_new_run(out)
     if wind is None and ball is None and mesh_file is None:
@@ -68,7 +72,8 @@ def interact(run_dir: Path, wind, profile, wind_height, ball, mesh_file, from_fr
     info, model = {}, None
     if accel is not None:
         scene = run.scene(check_videos=False)
-        height = wind_height or (float(scene.volume.max[1] - scene.volume.min[1]) if scene.volume is not None else 0.5)
+        height = wind_height or (float(scene.volume.max[1] - scene.volume.min[1]) if scene.volume is not None
+                                else 0.5 * scene_factor(scene))
         model = with_wind(ctx.model, accel, profile, ctx.source.center[1], height)
         info["wind"] = {"accel": list(accel), "profile": profile, "height": height}
     obstacle = None
@@ -77,7 +82,7 @@ def interact(run_dir: Path, wind, profile, wind_height, ball, mesh_file, from_fr
 
         obstacle, info["obstacle"] = make_obstacle(ball, mesh_file)
     _, with_ = simulate_future(run, out, "interact", frames, Interaction(model, obstacle, info), refiner, from_frame,
-                               ctx, notes, anchor)
+                               ctx, notes, anchor, limit)
     without = physics_baseline(run, frames, from_frame, ctx)
     for path in comparison_videos(run, out, without, with_, obstacle):
         log.info("wrote %s", path)

@@ -9,7 +9,7 @@ import click
 
 from fluidnexus.errors import InputError
 
-from .options import arch_option, load_model_file, start_engine
+from .options import arch_option, load_model_file, max_memory_option, start_engine
 
 log = logging.getLogger("fluidnexus")
 
@@ -101,9 +101,10 @@ def check_frames(frames: int) -> None:
               help="Start after this reconstructed frame (default: the run's last frame).")
 @model_options
 @refine_options
+@max_memory_option
 @arch_option
 def predict(run_dir: Path, frames: int, out: Path, from_frame, model_file, calibrate, calibrate_window, method,
-            no_refit, anchor, weights, lora, strength, steps, seed, offload, device, arch) -> None:
+            no_refit, anchor, weights, lora, strength, steps, seed, offload, device, max_memory, arch) -> None:
     """Simulate N frames after the last frame of RUN, render them from every view, refine and re-fit.
 
     \b
@@ -111,13 +112,15 @@ def predict(run_dir: Path, frames: int, out: Path, from_frame, model_file, calib
     fluidnexus predict runs/sf --frames 30 --out runs/sf-physics --no-refit
     fluidnexus predict runs/sf --from 89 --frames 30 --out runs/sf-check --model diag/model.json
     """
+    from fluidnexus.memory import parse_limit
     from fluidnexus.predict.session import Interaction, check_new_run, simulate_future
     from fluidnexus.runs import open_run
 
+    limit = parse_limit(max_memory)
     check_frames(frames)
     check_new_run(out)
     run = open_run(run_dir)
     refiner = make_refiner(method, no_refit, weights, lora, strength, steps, seed, offload, device)
     start_engine(arch)
     ctx, notes = future_context(run, from_frame, model_file, calibrate, calibrate_window)
-    simulate_future(run, out, "predict", frames, Interaction(), refiner, from_frame, ctx, notes, anchor)
+    simulate_future(run, out, "predict", frames, Interaction(), refiner, from_frame, ctx, notes, anchor, limit)

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import memory
 from ..atomic import write_json
 from ..camera import Camera
 from ..engine.tensors import torch_dtype
@@ -82,7 +83,8 @@ def scene_cameras(run: Run) -> list[tuple[str, Camera]]:
 
 def simulate_future(run: Run, out: Path, kind: str, frames: int, interaction: Interaction, refiner=None,
                     first: int | None = None, ctx: RunContext | None = None,
-                    notes: dict | None = None, anchor: bool = True) -> tuple[list[Smoke], list[Smoke]]:
+                    notes: dict | None = None, anchor: bool = True,
+                    max_memory: int | None = None) -> tuple[list[Smoke], list[Smoke]]:
     """Write the future of ``run`` into the run folder ``out``; return (physics rollout, saved frames).
 
     Args:
@@ -97,6 +99,8 @@ def simulate_future(run: Run, out: Path, kind: str, frames: int, interaction: In
         notes: more entries for run.json (e.g. the model calibration).
         anchor: carry each view's known look at the start frame along the rollout before refining
             (``anchor.anchor_videos``).
+        max_memory: refuse (InputError) before writing anything when the estimated memory is above this many
+            bytes (``fluidnexus.memory``; None: the default limit).
     """
     if frames <= 0:
         raise InputError(None, "--frames", f"must be > 0, got {frames}")
@@ -105,9 +109,12 @@ def simulate_future(run: Run, out: Path, kind: str, frames: int, interaction: In
     model = interaction.model or ctx.model
     info = {"interaction": interaction.info, "refine": None if refiner is None else refiner.provenance(),
             "anchor": refiner is not None and anchor, **(notes or {})}
+    start = Smoke.from_state(run.state(first), torch_dtype())
+    limit = memory.parse_limit(None) if max_memory is None else max_memory
+    cameras = [cam for _, cam in scene_cameras(run)]
+    memory.check(memory.future_estimate(kind, start, frames, ctx, cameras, refiner is not None), limit)
     prepare(out, run, kind, first, frames, ctx, model, info)
     tic = time.perf_counter()
-    start = Smoke.from_state(run.state(first), torch_dtype())
     ws = workspace_for(start, frames, ctx, model)
     physics = list(track(rollout(start, frames, ws, ctx, interaction.obstacle), "simulate", frames))
     saved = physics
