@@ -2,13 +2,15 @@
 
 Prints a markdown table: forward and forward+backward milliseconds (median of --repeats after warm-up) for
 270x480 / 2 k, 270x480 / 20 k and 1080x1920 / 40 k Gaussians, and, in the same run, the dense torch
-reference (tests/reference/splat_reference.py) on the smallest case with the speed ratio.
+reference (tests/reference/splat_reference.py) on the smallest case with the speed ratio. A second table times
+the same renders over a per-pixel background image (a clean plate, not optimised) against a constant one,
+interleaved run by run in this process, with the ratio.
 
 The scene imitates ScalarFlow: a camera 1.3 m from a rising plume (fx = 2614 px at 1080x1920), Gaussians in a
 cone-shaped column 0.6 m tall, isotropic-ish scales 3-10 mm, opacities 0.05-0.3, grayscale (C = 1).
 
     python benchmarks/bench_splat.py [--arch cpu|cuda] [--precision f32|f64] [--repeats 5] [--channels 1]
-                                     [--omp-wait active|passive]
+                                     [--omp-wait active|passive] [--skip-reference] [--skip-plate]
 
 On a CPU, torch's OpenMP threads spin after each torch op (OMP_WAIT_POLICY=active, libgomp's default) and
 steal the cores from Taichi's kernels; ``--omp-wait passive`` (the default here) sets OMP_WAIT_POLICY=PASSIVE
@@ -81,6 +83,20 @@ def make_step(render, camera, inputs, background, backward: bool):
     return step
 
 
+def timed_pair(first, second, repeats: int) -> list[tuple[float, float]]:
+    """Median wall time and median process CPU time (ms) of ``first()`` and of ``second()``, run alternately after
+    one warm-up each, so that a change of load on a shared machine hits both alike."""
+    first(), second()
+    times = [([], []), ([], [])]
+    for _ in range(repeats):
+        for fn, (wall, cpu) in zip((first, second), times):
+            t0, c0 = time.perf_counter(), time.process_time()
+            fn()
+            wall.append(1e3 * (time.perf_counter() - t0))
+            cpu.append(1e3 * (time.process_time() - c0))
+    return [(statistics.median(wall), statistics.median(cpu)) for wall, cpu in times]
+
+
 def reference_step(camera, inputs, background, strip: int):
     """Dense reference forward+backward, in row strips of `strip` rows to bound memory."""
     from tests.reference.splat_reference import render_reference
@@ -103,6 +119,7 @@ def main():
     parser.add_argument("--tile", type=int, default=16)
     parser.add_argument("--strip", type=int, default=32, help="rows per chunk of the dense reference")
     parser.add_argument("--skip-reference", action="store_true")
+    parser.add_argument("--skip-plate", action="store_true", help="skip the per-pixel background comparison")
     parser.add_argument("--omp-wait", default="passive", choices=["active", "passive"])
     args = parser.parse_args()
     os.environ["OMP_WAIT_POLICY"] = args.omp_wait.upper()
@@ -142,6 +159,21 @@ def main():
         ref = timed(reference_step(camera, [t.cpu() for t in inputs], background.cpu(), args.strip), 1, False)[0]
         print(f"\nDense torch reference, {camera.width} x {camera.height} / {inputs[0].shape[0]} Gaussians, "
               f"forward+backward: {ref:.0f} ms; Taichi (median) is {ref / both[0]:.0f}x faster.")
+    if not args.skip_plate:
+        print("\nPer-pixel background [H, W, C] (not optimised) against a constant one, forward+backward, runs "
+              "interleaved:\n")
+        print("| image (W x H) | Gaussians | constant: wall / CPU ms (medians) | per-pixel: wall / CPU ms (medians) "
+              "| ratio per-pixel / constant: wall (CPU) |")
+        print("|---|---|---|---|---|")
+        for width, height, n in CASES:
+            camera = plume_camera(width, height)
+            inputs = [t.to(dev) for t in plume_scene(n, args.channels, dtype)]
+            plate = torch.rand((height, width, args.channels), generator=torch.Generator().manual_seed(1),
+                               dtype=torch.float64).to(device=dev, dtype=dtype)
+            const, pixel = timed_pair(make_step(rend, camera, inputs, background, True),
+                                      make_step(rend, camera, inputs, plate, True), args.repeats)
+            print(f"| {width} x {height} | {n} | {const[0]:.1f} / {const[1]:.1f} | {pixel[0]:.1f} / {pixel[1]:.1f} "
+                  f"| {pixel[0] / const[0]:.3f} ({pixel[1] / const[1]:.3f}) |")
     print(f"load average at end: {' '.join(f'{x:.1f}' for x in os.getloadavg())}")
 
 

@@ -61,9 +61,8 @@ class _Frame:
 
     def raster_args(self, fields):
         return (fields.gauss, fields.pixels, self.background, self.background_stride, self.channels,
-                self.with_depth, self.tile,
-                self.width, self.height, self.tiles_x, self.n_tiles, self.start, self.lists, self.rect, self.power_min,
-                self.t_final, self.last, self.n, self.first, self.slots)
+                self.with_depth, self.tile, self.width, self.height, self.tiles_x, self.n_tiles, self.start,
+                self.lists, self.rect, self.power_min, self.t_final, self.last, self.n, self.first, self.slots)
 
 
 def _rows(t: torch.Tensor) -> torch.Tensor:
