@@ -33,6 +33,8 @@ CONFIDENT = 0.5  # confidence from which a pixel counts as "seen"
 MIN_SEEN_FRACTION = 0.01  # below this share of seen pixels a view has no usable temporal estimate
 CHANGED_FRACTION = 0.002  # a frame with this share of pixels changed from frame 0 ends the clean prefix
 MAX_DISAGREEMENT = 0.02  # clean frames may disagree with the seen backdrop at this share of its pixels
+MIN_CLEAN_FRAMES = 2  # fewer leading still frames are no evidence of an empty backdrop
+MAX_MOVING = 0.01  # clean frames (but the last, which sees the smoke arrive) are still at all but this share
 
 
 @dataclass(frozen=True)
@@ -84,7 +86,8 @@ def estimate_plate(video: np.ndarray, color: np.ndarray | None = None) -> PlateE
     quiet = quiet_mask(video, noise)
     temporal = temporal_mode(video, quiet, noise)
     first_change = clean_prefix(video, noise)
-    if _agrees(np.median(video[:first_change], axis=0), temporal, noise):
+    still = quiet[:first_change] if first_change == len(video) else quiet[:first_change - 1]
+    if _is_clean(video[:first_change], still, temporal, noise):
         return clean_frames(video[:first_change], noise)
     if color is not None:
         return color_plate(video, quiet, temporal, np.asarray(color, np.float32), noise)
@@ -105,13 +108,16 @@ def clean_frames(frames: np.ndarray, noise: float | None = None) -> PlateEstimat
 def color_plate(video: np.ndarray, quiet: np.ndarray, temporal: PlateEstimate, color: np.ndarray,
                 noise: float) -> PlateEstimate:
     """A known backdrop colour where the pixel shows it at quiet moments; the temporal mode where it never does
-    but is confidently something else (a static object); the colour, with the temporal confidence, elsewhere."""
+    and is a static object: confidently something else, or an unsure pixel inside the convex hull of such a
+    region (smoke that often passes in front of an object leaves holes in it); the colour, with the temporal
+    confidence, elsewhere."""
     tol = _difference(noise)
     shown = np.zeros(video.shape[1:3], np.int32)
     for t in range(len(video)):
         shown += quiet[t] & (np.abs(video[t] - color).max(axis=2) < tol)
     seen_color = shown >= max(2, round(0.02 * len(video)))
     obj = ~seen_color & (temporal.confidence >= CONFIDENT)
+    obj |= ~seen_color & hulls(obj)
     plate = np.where(obj[..., None], temporal.plate, color[None, None, :]).astype(np.float32)
     conf = np.where(seen_color, 1.0, temporal.confidence).astype(np.float32)
     detail = {"color": [round(float(c), 6) for c in color], "object_fraction": round(float(obj.mean()), 4)}
@@ -137,7 +143,7 @@ def temporal_mode(video: np.ndarray, quiet: np.ndarray, noise: float) -> PlateEs
     support = np.clip(in_mode / max(MIN_SAMPLES, FULL_SUPPORT * t_count), 0, 1)
     agreement = np.where(n_quiet > 0, in_mode / np.maximum(n_quiet, 1), 0)
     conf = (support * agreement).astype(np.float32)
-    plate = fill_unseen(np.nan_to_num(centre), in_mode > 0, np.median(video, axis=0))
+    plate = fill_unseen(np.nan_to_num(centre), in_mode > 0, video)
     return PlateEstimate(plate, conf, "temporal", {"frames": t_count})
 
 
@@ -181,9 +187,9 @@ def clean_prefix(video: np.ndarray, noise: float) -> int:
     return len(video)
 
 
-def fill_unseen(plate: np.ndarray, seen: np.ndarray, fallback: np.ndarray) -> np.ndarray:
+def fill_unseen(plate: np.ndarray, seen: np.ndarray, video: np.ndarray) -> np.ndarray:
     """Fill pixels not ``seen`` from seen neighbours (normalised Gaussian blurs of growing width); where none is
-    near, ``fallback``."""
+    near, the pixel's median over the video."""
     out = plate.copy()
     todo = ~seen
     weight = seen.astype(np.float32)
@@ -195,16 +201,32 @@ def fill_unseen(plate: np.ndarray, seen: np.ndarray, fallback: np.ndarray) -> np
         out[ok] = num[ok] / den[ok][:, None]
         todo &= ~ok
         sigma *= 2
-    out[todo] = fallback[todo]
+    if todo.any():
+        out[todo] = np.median(video[:, todo], axis=0)
     return out.astype(np.float32)
 
 
-def _agrees(prefix: np.ndarray, temporal: PlateEstimate, noise: float) -> bool:
-    """Clean frames must match the backdrop the rest of the video shows wherever that backdrop is seen."""
+def hulls(mask: np.ndarray) -> np.ndarray:
+    """[H, W] bool: the convex hull of every connected region of ``mask`` larger than a few pixels."""
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+    out = np.zeros(mask.shape, np.uint8)
+    for k in range(1, count):
+        if stats[k, cv2.CC_STAT_AREA] >= 4:
+            ys, xs = np.nonzero(labels == k)
+            cv2.fillConvexPoly(out, cv2.convexHull(np.stack([xs, ys], 1).astype(np.int32)), 1)
+    return out.astype(bool)
+
+
+def _is_clean(frames: np.ndarray, still: np.ndarray, temporal: PlateEstimate, noise: float) -> bool:
+    """Leading frames are clean if there are at least ``MIN_CLEAN_FRAMES``, nothing moves in them (``still``:
+    their quiet masks, without the last frame's where smoke arrives after it; smoke present from frame 0 moves),
+    and their median matches the backdrop the rest of the video shows wherever that backdrop is seen."""
+    if len(frames) < MIN_CLEAN_FRAMES or (1.0 - still.mean(axis=(1, 2))).max() > MAX_MOVING:
+        return False
     seen = temporal.confidence >= CONFIDENT
     if seen.mean() < MIN_SEEN_FRACTION:
         return False
-    differs = np.abs(prefix - temporal.plate).max(axis=2) >= _difference(noise)
+    differs = np.abs(np.median(frames, axis=0) - temporal.plate).max(axis=2) >= _difference(noise)
     return float(differs[seen].mean()) <= MAX_DISAGREEMENT
 
 
@@ -222,8 +244,7 @@ def _mode_bins(video: np.ndarray, quiet: np.ndarray) -> np.ndarray:
     pixels = np.arange(h * w)
     counts = np.zeros(MODE_BINS * h * w, np.float32)
     for t in range(len(video)):
-        counts += np.bincount(_brightness_bin(video[t]).ravel() * h * w + pixels, weights=quiet[t].ravel(),
-                              minlength=MODE_BINS * h * w).astype(np.float32)
+        counts[_brightness_bin(video[t]).ravel() * h * w + pixels] += quiet[t].ravel()  # one bin per pixel
     counts = counts.reshape(MODE_BINS, h, w)
     padded = np.pad(counts, ((1, 1), (0, 0), (0, 0)))
     smooth = padded[:-2] + 2 * padded[1:-1] + padded[2:]
@@ -232,11 +253,11 @@ def _mode_bins(video: np.ndarray, quiet: np.ndarray) -> np.ndarray:
 
 def _masked_mean(video: np.ndarray, mask_at, fallback: np.ndarray | None = None) -> np.ndarray:
     """[H, W, 3] mean over frames of ``video[t]`` where ``mask_at(t)``; NaN (or ``fallback``) where never."""
-    acc = np.zeros(video.shape[1:], np.float64)
-    cnt = np.zeros(video.shape[1:3], np.float64)
+    acc = np.zeros(video.shape[1:], np.float32)
+    cnt = np.zeros(video.shape[1:3], np.float32)
     for t in range(len(video)):
         m = mask_at(t)
-        acc += video[t] * m[..., None]
+        np.add(acc, video[t], out=acc, where=m[..., None])
         cnt += m
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = (acc / cnt[..., None]).astype(np.float32)

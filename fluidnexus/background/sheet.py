@@ -21,13 +21,21 @@ def contact_sheet(rows: list[tuple[str, np.ndarray, PlateEstimate]]) -> np.ndarr
         tiles = [cv2.resize(np.ascontiguousarray(im, np.float32), size, interpolation=cv2.INTER_AREA).reshape(
             TILE_HEIGHT, size[0], -1) for im in (frame, est.plate, est.confidence)]
         tiles[2] = np.repeat(tiles[2], 3, axis=2)
-        row = side_by_side(*tiles)
+        row = side_by_side(*[_framed(tile) for tile in tiles])
         seen = float((est.confidence >= CONFIDENT).mean())
-        text = f"{name}: {est.source}, seen {seen:.0%}   (frame | plate | confidence, white = sure)"
-        out.append(_captioned(row, text))
+        out.append(_captioned(row, f"{name}: {est.source}, seen {seen:.0%}"))
     width = max(r.shape[1] for r in out)
     out = [np.pad(r, ((0, 4), (0, width - r.shape[1]), (0, 0)), constant_values=1.0) for r in out]
-    return np.concatenate(out, axis=0)
+    legend = _captioned(np.ones((0, width, 3), np.float32), "frame | plate | confidence (white = sure)")
+    return np.concatenate([legend] + out, axis=0)
+
+
+def _framed(tile: np.ndarray) -> np.ndarray:
+    """A one-pixel grey frame, so a white plate or confidence shows its extent on the white sheet."""
+    out = tile.copy()
+    out[[0, -1]] = 0.5
+    out[:, [0, -1]] = 0.5
+    return out
 
 
 def _captioned(row: np.ndarray, text: str) -> np.ndarray:
