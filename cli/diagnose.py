@@ -32,7 +32,8 @@ def _window(text: str, name: str) -> tuple[int, int]:
 @arch_option
 def diagnose(source, out, train_frames, validate_frames, height, spacing, evals, arch):
     """Find what the simulation gets wrong on the measured footage of SOURCE (a scene, or a run folder whose
-    scene is used), name the cause among the candidate extensions, and measure the validation gain."""
+    scene is used): choose the base structure (the paper's gas, or the gas in ambient air), name the cause among
+    the candidate extensions, and measure the validation gains."""
     from pathlib import Path
 
     from fluidnexus.diagnose import diagnose as run_diagnose
@@ -44,6 +45,8 @@ def diagnose(source, out, train_frames, validate_frames, height, spacing, evals,
     report = run_diagnose(scene_dir, out, _window(train_frames, "--train-frames"),
                           _window(validate_frames, "--validate-frames"), height=height, spacing=spacing,
                           maxfev=evals)
-    g = report["finding"]["gain"]
+    g, st = report["finding"]["gain"], report["structure"]
+    click.echo(f"structure: {st['name']} (validation image error {st['gain']['before']:.4f} -> "
+               f"{st['gain']['after']:.4f})")
     click.echo(f"finding: {report['finding']['effect']} {report['finding']['params']} "
                f"(validation image error {g['before']:.4f} -> {g['after']:.4f}); report in {out}/report.md")
