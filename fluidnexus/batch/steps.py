@@ -159,7 +159,7 @@ def step_args(step: str, source: dict, options: list[str], layout: Layout, arch:
 
 
 def source_args(source: dict) -> list[str]:
-    """calibrate's arguments naming a scene's source (a copied scene folder needs none: see tasks.copy_scene)."""
+    """calibrate's arguments naming a sample or PINF source (a scene folder is copied instead: tasks.copy_scene)."""
     if source["kind"] == "sample":
         return ["--sample", source["sample"], "--protocol", source["protocol"]]
     if source["kind"] == "from_pinf":

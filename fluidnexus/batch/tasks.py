@@ -82,10 +82,12 @@ def run_step(job: StepJob) -> dict:
     started = time.time()
     try:
         _clear_unfinished(job, layout)
-        args = step_args(job.step, job.source, job.options, layout, job.arch)
+        copy = job.step == PREPARE and job.source["kind"] == "scene"
+        args = ["copy", job.source["scene"]] if copy else step_args(job.step, job.source, job.options, layout,
+                                                                      job.arch)
         log.info("batch: %s %s on %s: %s", job.scene, job.step, socket.gethostname(), " ".join(args))
         try:
-            if job.step == PREPARE and job.source["kind"] == "scene":
+            if copy:
                 copy_scene(Path(job.source["scene"]), layout.scene)
             else:
                 command(job.step).main(args=args, prog_name=f"fluidnexus {command(job.step).name}",
