@@ -164,12 +164,12 @@ def _drive(ray, remote, states: list[SceneState], out: Path, probe: str, resourc
                 else:
                     state.status = "ok"
                     log.info("%s: finished", state.job.name)
-                    bar.advance()
             else:
                 state.status, state.error = "failed", result["error"]
                 log.warning("%s: failed: %s", state.job.name, state.error)
-                bar.advance()
             _status(bar, states)
+            if state.status != "running":
+                bar.advance()
             on_change(states)
 
 
