@@ -84,14 +84,9 @@ def option_tokens(step: str, key: str, value, base: Path) -> list[str]:
         if param.secondary_opts:
             return [param.secondary_opts[0]]
         return []
-    if isinstance(value, bool) or isinstance(value, (dict, list)) and not value:
+    if isinstance(value, (bool, dict)) or value == []:
         raise ValueError(f"expected a value, got {value!r}")
-    if isinstance(value, list):
-        text = ",".join(str(v) for v in value)
-    elif isinstance(value, dict):
-        raise ValueError(f"expected a value, got a table {value!r}")
-    else:
-        text = str(value)
+    text = ",".join(str(v) for v in value) if isinstance(value, list) else str(value)
     if isinstance(param.type, click.Path):
         text = str((base / text).resolve())
     else:
