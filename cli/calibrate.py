@@ -15,6 +15,7 @@ from fluidnexus.calibrate.colmap import media_by_stem, read_colmap
 from fluidnexus.calibrate.nerf import read_nerf
 from fluidnexus.calibrate.pinf import DEFAULT_SOURCE_RADIUS, pinf_dict, read_pinf, source_at_volume_foot
 from fluidnexus.errors import InputError, require_positive
+from fluidnexus.obstacles import parse_option
 from fluidnexus.samples import sample_path
 from fluidnexus.scene import SCENE_FILE, Scene, View, load_ground_truth, load_scene
 from fluidnexus.video import VIDEO_SUFFIXES, probe_video
@@ -74,6 +75,9 @@ def _parse_scale_distance(text: str | None):
 @click.option("--metres-per-unit", type=float,
               help="Length of one unit of the imported file's world, in metres (--from-pinf, --from-nerf, "
                    "--from-colmap; default 1). The scene is written in metres, +y up.")
+@click.option("--obstacle", "obstacles", multiple=True,
+              help="A rigid obstacle in the scene: sphere:CX,CY,CZ,R or mesh:FILE (a closed mesh trimesh reads), "
+                   "in the imported file's own frame and unit (converted like its cameras). Repeatable.")
 @click.option("--link", is_flag=True, help="Symlink the footage into the scene instead of copying it.")
 @click.option("--to-pinf", type=click.Path(path_type=Path, dir_okay=False),
               help="Also write the scene as a PINF info.json here (for PINF/HyFluid baselines).")
@@ -94,6 +98,7 @@ def calibrate(out: Path, overwrite: bool, to_pinf: Path | None, paths: tuple[Pat
     if bool(paths) != opts["images"]:
         raise InputError(None, "--images", "list the images or videos after --images (and only there)")
     opts["paths"] = paths
+    opts["obstacles"] = tuple(parse_option(text) for text in opts["obstacles"])
     chosen = [m for m in MODES if opts[m]]
     if len(chosen) != 1:
         raise InputError(None, "calibrate", "give exactly one of --from-pinf, --from-nerf, --from-colmap, "
@@ -124,7 +129,8 @@ def _from_pinf(out: Path, opts, info: Path | None = None, roles: Roles | None = 
     return write_scene(out, cap.fps, cap.frame_count, views, gts, cap.volume,
                        source_at_volume_foot(cap.volume, opts["source_radius"]),
                        {"pinf": cap.kept, "imported_from": str(info)}, link=opts["link"],
-                       source_frame=_recorded(cap.frame), backdrop_color=cap.backdrop_color)
+                       source_frame=_recorded(cap.frame), backdrop_color=cap.backdrop_color,
+                       obstacles=opts["obstacles"])
 
 
 def _import_frame(opts) -> SourceFrame:
@@ -164,7 +170,7 @@ def _write_recordings(out: Path, source: Path, recordings: dict[str, Recording],
     views, gts = assign_roles(recordings, roles, source)
     rate, count = _timing(source, [recordings[n] for n in roles.input], fps or opts["fps"])
     return write_scene(out, rate, count, views, gts, volume, source_disk, extra, link=opts["link"],
-                       source_frame=source_frame)
+                       source_frame=source_frame, obstacles=opts["obstacles"])
 
 
 def _from_nerf(out: Path, opts) -> Scene:
@@ -222,7 +228,8 @@ def _from_video(out: Path, opts) -> Scene:
         raise InputError(video, "fps", "the footage does not state a frame rate; pass --fps")
     extra = {"rig": {"kind": "arc", "fov_deg": opts["fov_deg"], "views": opts["views"], "arc_deg": opts["arc_deg"],
                      "distance": opts["distance"]}}
-    return write_scene(out, rate, info.frame_count, views, [], rig.volume, rig.source, extra, link=opts["link"])
+    return write_scene(out, rate, info.frame_count, views, [], rig.volume, rig.source, extra, link=opts["link"],
+                       obstacles=opts["obstacles"])
 
 
 def write_pinf(scene_dir: Path, dest: Path) -> None:

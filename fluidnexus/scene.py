@@ -16,6 +16,7 @@ import numpy as np
 from .atomic import read_json, write_json
 from .camera import Camera
 from .errors import InputError, require_finite, require_positive
+from .obstacles import parse_obstacles
 from .world_frame import SourceFrame
 
 FORMAT = "fluidnexus-scene/1"
@@ -44,15 +45,59 @@ class Volume:
         return {"min": list(self.min), "max": list(self.max)}
 
 
+UP = (0.0, 1.0, 0.0)
+
+
 @dataclass(frozen=True)
 class Source:
-    """The smoke inflow: a horizontal disk of ``radius`` metres centred at ``center``."""
+    """The smoke inflow: a disk of ``radius`` metres centred at ``center``, perpendicular to the unit vector
+    ``direction`` (the way the smoke leaves it; default up), seeding gas at ``speed`` m/s along it during the
+    frames ``window`` = [A, B) (B None: to the end; the whole window None: always)."""
 
     center: tuple[float, float, float]
     radius: float
+    direction: tuple[float, float, float] = UP
+    speed: float = 0.0
+    window: tuple[int, int | None] | None = None
+
+    def emits_at(self, frame: int) -> bool:
+        """Whether the source is on at scene frame ``frame``."""
+        if self.window is None:
+            return True
+        start, stop = self.window
+        return start <= frame and (stop is None or frame < stop)
+
+    @property
+    def velocity(self) -> tuple[float, float, float]:
+        """The inflow velocity [m/s]: ``speed`` along ``direction``."""
+        return tuple(float(self.speed * d) for d in self.direction)
 
     def to_dict(self) -> dict:
-        return {"center": list(self.center), "radius": self.radius}
+        out = {"center": list(self.center), "radius": self.radius, "direction": list(self.direction),
+               "speed": self.speed}
+        if self.window is not None:
+            out["window"] = list(self.window)
+        return out
+
+    @classmethod
+    def from_dict(cls, data, path=None, fld: str = "source") -> "Source":
+        """Parse and check a source record (scene.json, run.json); errors name ``path`` and ``fld``."""
+        if not isinstance(data, dict) or "center" not in data or "radius" not in data:
+            raise InputError(path, fld, "expected {center: [x, y, z], radius: r, direction?, speed?, window?}")
+        direction = UP
+        if data.get("direction") is not None:
+            d = np.asarray(_triple(data["direction"], path, f"{fld}.direction"))
+            norm = float(np.linalg.norm(d))
+            if norm < 1e-9:
+                raise InputError(path, f"{fld}.direction", f"has zero length ({d.tolist()}); give the way the smoke "
+                                                           "leaves the source, e.g. [0, 1, 0] for up")
+            direction = tuple(float(v) for v in d / norm)
+        speed = float(require_finite(data.get("speed", 0.0), path, f"{fld}.speed"))
+        if speed < 0:
+            raise InputError(path, f"{fld}.speed", f"must be >= 0 m/s, got {speed}")
+        return cls(_triple(data["center"], path, f"{fld}.center"),
+                   require_positive(data["radius"], path, f"{fld}.radius"), direction, speed,
+                   _parse_window(data.get("window"), path, f"{fld}.window"))
 
 
 @dataclass(frozen=True)
@@ -125,6 +170,7 @@ class Scene:
     source: Source | None = None
     extra: dict = field(default_factory=dict)
     backgrounds: dict[str, Background] = field(default_factory=dict)
+    obstacles: tuple = ()  # fluidnexus.obstacles.SphereBody / MeshBody, scene coordinates
     source_frame: SourceFrame | None = None  # None: the scene is its own source frame (world_frame.py)
     backdrop_color: tuple[float, float, float] | None = None  # a known backdrop colour (PINF frame_bkg_color)
 
@@ -183,13 +229,19 @@ def _parse_volume(data, path) -> Volume | None:
     return Volume(lo, hi)
 
 
-def _parse_source(data, path) -> Source | None:
-    if data is None:
+def _parse_window(value, path, fld: str) -> tuple[int, int | None] | None:
+    """An emission window [A, B] of frame indices (B null: to the end), or None."""
+    if value is None:
         return None
-    if not isinstance(data, dict) or "center" not in data or "radius" not in data:
-        raise InputError(path, "source", "expected {center: [x, y, z], radius: r}")
-    return Source(_triple(data["center"], path, "source.center"),
-                  require_positive(data["radius"], path, "source.radius"))
+    ok = isinstance(value, (list, tuple)) and len(value) == 2 and all(
+        v is None or (isinstance(v, int) and not isinstance(v, bool)) for v in value) and value[0] is not None
+    if not ok or value[0] < 0 or (value[1] is not None and value[1] <= value[0]):
+        raise InputError(path, fld, f"expected frames [A, B] with 0 <= A < B (B null: to the end), got {value!r}")
+    return int(value[0]), None if value[1] is None else int(value[1])
+
+
+def _parse_source(data, path) -> Source | None:
+    return None if data is None else Source.from_dict(data, path)
 
 
 def _parse_views(items, path, key: str) -> list[dict]:
@@ -313,7 +365,9 @@ def load_scene(path: str | Path, check_videos: bool = True) -> Scene:
     scene = Scene(root, fps, frame_count, tuple(views), _parse_volume(data.get("volume"), scene_file),
                   _parse_source(data.get("source"), scene_file), data.get("extra", {}),
                   _parse_backgrounds(data.get("backgrounds"), views, root, scene_file, check_videos),
-                  **_parse_frame_and_backdrop(data, scene_file))
+                  **_parse_frame_and_backdrop(data, scene_file),
+                  obstacles=parse_obstacles(data.get("obstacles"), scene_file,
+                                            _parse_volume(data.get("volume"), scene_file), root))
     if check_videos:
         check_media(root, scene_file, frame_count,
                     [(f"views[{i}].video", v.video, v.camera) for i, v in enumerate(views) if v.video])
@@ -388,6 +442,8 @@ def scene_dict(scene: Scene, ground_truth: tuple[GroundTruth, ...] = ()) -> dict
         out["extra"] = scene.extra
     if scene.backgrounds:
         out["backgrounds"] = {"views": {name: b.to_dict() for name, b in scene.backgrounds.items()}}
+    if scene.obstacles:
+        out["obstacles"] = [o.to_dict() for o in scene.obstacles]
     if scene.source_frame is not None:
         out["source_frame"] = scene.source_frame.to_dict()
     if scene.backdrop_color is not None:

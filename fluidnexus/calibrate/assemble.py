@@ -11,6 +11,7 @@ import numpy as np
 from ..atomic import atomic_dir
 from ..camera import Camera
 from ..errors import InputError
+from ..obstacles import place_obstacles
 from ..scene import GroundTruth, Scene, Source, View, Volume, load_ground_truth, load_scene, save_scene
 from ..world_frame import SourceFrame
 
@@ -98,7 +99,7 @@ def _place(media: Path, folder: Path, name: str, link: bool) -> str:
 
 def write_scene(out: Path, fps: float, frame_count: int, views, ground_truth, volume: Volume | None,
                 source: Source | None, extra: dict | None = None, link: bool = False,
-                source_frame: SourceFrame | None = None, backdrop_color=None) -> Scene:
+                source_frame: SourceFrame | None = None, backdrop_color=None, obstacles=()) -> Scene:
     """Write a complete, validated scene folder at ``out`` atomically and return it (loaded back).
 
     Args:
@@ -106,6 +107,8 @@ def write_scene(out: Path, fps: float, frame_count: int, views, ground_truth, vo
         ground_truth: ``[(GroundTruth, media)]``, placed under ``ground_truth/``.
         link: symlink the media instead of copying it.
         source_frame, backdrop_color: of an imported scene (see :class:`~fluidnexus.scene.Scene`).
+        obstacles: ``calibrate --obstacle`` values in the imported file's frame (``obstacles.parse_option``);
+            converted by ``source_frame``, meshes written under ``obstacles/``.
     """
     out = Path(out)
     with atomic_dir(out) as tmp:
@@ -117,8 +120,9 @@ def write_scene(out: Path, fps: float, frame_count: int, views, ground_truth, vo
             (tmp / "ground_truth").mkdir()
             gts = tuple(GroundTruth(g.name, g.camera, _place(m, tmp / "ground_truth", g.name, link), g.poses)
                         for g, m in ground_truth)
+        bodies = place_obstacles(obstacles, tmp, source_frame, volume)
         save_scene(Scene(tmp, float(fps), int(frame_count), tuple(placed), volume, source, extra or {},
-                         source_frame=source_frame, backdrop_color=backdrop_color),
+                         source_frame=source_frame, backdrop_color=backdrop_color, obstacles=bodies),
                    gts, tmp)
         try:
             load_scene(tmp)

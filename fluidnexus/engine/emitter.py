@@ -3,6 +3,10 @@
 Defaults follow the release's ScalarFlow constants (docs/method-notes.md): source centre (x, z) =
 (0.34, -0.225) at y = 0, physical spacing 0.015 m in a disk of radius 0.09 m, visual spacing 0.00625 m in a
 disk of radius 0.025 m; initial lattice 0.009 m in a cylinder of radius 0.10 m, y in [-0.02, 0.08].
+
+A source points along a unit ``direction`` (default up, +y): its disk is perpendicular to it and the lattices
+built for the default up direction are turned onto it by :func:`orient` (the minimal rotation taking +y to the
+direction; the identity, and therefore bit-exact, for +y).
 """
 from dataclasses import dataclass
 
@@ -26,6 +30,31 @@ def cylinder_lattice(center_xz, radius: float, y0: float, y1: float, spacing: fl
     return np.concatenate([disk + np.array([0.0, y, 0.0]) for y in ys]) if len(ys) else np.zeros((0, 3))
 
 
+UP = (0.0, 1.0, 0.0)
+
+
+def rotation_from_up(direction) -> np.ndarray:
+    """[3, 3] the minimal rotation taking +y onto the unit vector ``direction`` (180 degrees about x for -y)."""
+    d = np.asarray(direction, dtype=np.float64)
+    d = d / np.linalg.norm(d)
+    up = np.array(UP)
+    c = float(d @ up)
+    if c < -1.0 + 1e-12:
+        return np.diag([1.0, -1.0, -1.0])
+    k = np.cross(up, d)
+    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + kx + kx @ kx / (1.0 + c)
+
+
+def orient(points: np.ndarray, origin, direction) -> np.ndarray:
+    """``points`` [M, 3] laid out for a source pointing up at ``origin``, turned about ``origin`` so that up
+    becomes ``direction``. Returned unchanged (bit for bit) for the up direction."""
+    if tuple(float(v) for v in direction) == UP:
+        return points
+    o = np.asarray(origin, dtype=np.float64)
+    return (np.asarray(points, dtype=np.float64) - o) @ rotation_from_up(direction).T + o
+
+
 @dataclass(frozen=True)
 class SourceDisk:
     """An emitter: each emission seeds a jittered disk lattice of particles.
@@ -33,6 +62,7 @@ class SourceDisk:
     Attributes:
         center: disk centre (x, y, z) [m].
         radius: disk radius [m].
+        direction: unit normal of the disk, the way the smoke leaves the source (default up).
         spacing: lattice spacing [m].
         jitter: uniform random offset per axis, as a fraction of the spacing.
         velocity: initial velocity of the seeded particles [m/s].
@@ -45,18 +75,23 @@ class SourceDisk:
     jitter: float = 0.1
     velocity: tuple = (0.0, 0.0, 0.0)
     every: int = 1
+    direction: tuple = UP
 
     @property
     def count(self) -> int:
         """Particles seeded per emission."""
         return len(disk_lattice(self.center, self.radius, self.spacing))
 
+    def lattice(self) -> np.ndarray:
+        """The disk's lattice points [count, 3] m, perpendicular to ``direction``."""
+        return orient(disk_lattice(self.center, self.radius, self.spacing), self.center, self.direction)
+
     def emits_at(self, step: int) -> bool:
         return step % self.every == 0
 
     def sample(self, rng: np.random.Generator) -> np.ndarray:
         """Seeded positions [count, 3] m for one emission."""
-        pts = disk_lattice(self.center, self.radius, self.spacing)
+        pts = self.lattice()
         return pts + rng.uniform(-0.5, 0.5, pts.shape) * self.jitter * self.spacing
 
     def emit(self, particles, step: int, rng: np.random.Generator) -> int:

@@ -8,6 +8,7 @@ body is moved to the nearest point of its surface. Two bodies:
   triangle mesh; a point with phi(x) < 0 moves by -phi(x) grad phi / |grad phi| (trilinear phi; repeated
   ``passes`` times, which converges to the surface where phi is a true distance). Points outside the grid are
   outside the body.
+- :class:`ObstacleGroup`: several bodies (a scene's declared obstacles plus an interaction's), one after another.
 
 The projection is not differentiated: a simulator step with an obstacle has no backward (docs/prediction.md).
 """
@@ -184,6 +185,22 @@ class GridObstacle:
                         (f[:, 2] if c else 1 - f[:, 2])
                     out += w * self.phi_np[i0[:, 0] + a, i0[:, 1] + b, i0[:, 2] + c]
         return np.where(inside, out, np.inf)
+
+
+class ObstacleGroup:
+    """Several bodies at once: a point is projected out of each in turn (bodies that do not overlap leave it
+    outside all of them)."""
+
+    def __init__(self, bodies):
+        self.bodies = tuple(bodies)
+
+    def project(self, x, row: int, n: int) -> None:
+        for body in self.bodies:
+            body.project(x, row, n)
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """Signed distance [K] m to the nearest body (negative inside one)."""
+        return np.min([b.distance(points) for b in self.bodies], axis=0)
 
 
 class PointProjector:

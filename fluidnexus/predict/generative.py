@@ -15,6 +15,7 @@ import torch
 
 from ..camera import Camera
 from ..frames import render_state
+from ..obstacles import join
 from ..progress import progress
 from ..recon.fit import Views, fit_appearance, fit_dynamics
 from ..recon.initial import emit, frame_generator
@@ -42,14 +43,12 @@ def refit(start: Smoke, videos: np.ndarray, cameras: list[Camera], ws: Workspace
     """Yield the re-fitted frames start.frame + 1 ... against ``videos`` [V, T, H, W, C] (one per camera).
 
     Stage 1 starts every frame from Sim(u_{t-1}, p_{t-1}) of the re-fitted previous frame (with the workspace's
-    wind and obstacle); with an obstacle the look-ahead term is off (a step with an obstacle has no gradient)
-    and the fitted particles are pushed out of the body afterwards.
+    wind, and the scene's obstacles plus ``obstacle``); with an obstacle the look-ahead term is off (a step with an
+    obstacle has no gradient) and the fitted particles are pushed out of the bodies (``fit_dynamics``).
     """
-    from ..engine.obstacle import PointProjector
-
+    obstacle = join(ctx.obstacle, obstacle)
     cfg = ctx.config if obstacle is None else replace(ctx.config, lambda_next=0.0)
-    ws.sim.set_obstacle(obstacle)
-    projector = PointProjector(max(ws.advect_query.query_capacity, ws.sim.capacity)) if obstacle is not None else None
+    ws.set_obstacle(obstacle)
     prev, look = start, inflow_look(start, ctx)
     frames = videos.shape[1]
     with progress("re-fit", frames) as bar:
@@ -59,12 +58,8 @@ def refit(start: Smoke, videos: np.ndarray, cameras: list[Camera], ws: Workspace
             prev = replace(prev)  # emit appends to its argument; the caller's start stays as it is
             emit(prev, ctx.source, cfg, t, look)
             dyn = fit_dynamics(prev, ws, views, cfg, frame_generator(cfg.seed, t), bar)
-            p, u, x = dyn.p, dyn.u, dyn.x
-            if obstacle is not None:
-                p = projector(obstacle, p)
-                u = (p - prev.p) / ws.dt
-                x = projector(obstacle, x)
-            smoke = Smoke(t, p, u, prev.age + ws.dt, x, prev.color, prev.scale, prev.rotation, prev.opacity)
+            smoke = Smoke(t, dyn.p, dyn.u, prev.age + ws.dt, dyn.x, prev.color, prev.scale, prev.rotation,
+                          prev.opacity)
             smoke.keep_physical(~ws.isolated(smoke.p))
             fit_appearance(smoke, views, cfg, frame_generator(cfg.seed, t), bar)
             bar.advance()

@@ -16,6 +16,7 @@ import torch
 from .. import engine
 from ..engine import ModelConfig, SolverConfig, Wind
 from ..errors import InputError
+from ..obstacles import engine_obstacle, join
 from ..recon.config import ReconConfig
 from ..recon.initial import emit, physical_source, visual_source
 from ..recon.smoke import Smoke
@@ -28,19 +29,24 @@ WIND_PROFILES = {"uniform": "constant", "height": "ramp"}
 
 @dataclass(frozen=True)
 class RunContext:
-    """What a rollout needs from a run folder: its settings and its smoke inflow."""
+    """What a rollout needs from a run folder: its settings, its smoke inflow and the scene's obstacles (an
+    engine body, or None)."""
 
     config: ReconConfig
     solver: SolverConfig
     model: ModelConfig
     source: Source
+    obstacle: object = None
 
     @classmethod
     def of(cls, run: Run) -> "RunContext":
+        """The run's context; the scene's obstacles become engine bodies (the engine must be started)."""
         cfg = run.config
         src = run.info.get("source") or _summary_source(run)
+        scene = run.scene(check_videos=False)
         return cls(ReconConfig.from_dict(cfg["recon"], run.root / "config.json"), SolverConfig.from_dict(cfg["solver"]),
-                   ModelConfig.from_dict(cfg["model"]), Source(tuple(src["center"]), float(src["radius"])))
+                   ModelConfig.from_dict(cfg["model"]), Source.from_dict(src, run.root / "run.json"),
+                   engine_obstacle(scene.obstacles, scene.root, scene.volume))
 
 
 def _summary_source(run: Run) -> dict:
@@ -97,33 +103,30 @@ def inflow_look(smoke: Smoke, ctx: RunContext, frames: int = INFLOW_FRAMES) -> t
             float(smoke.opacity[recent].median()))
 
 
-def physics_step(smoke: Smoke, ws: Workspace, ctx: RunContext, obstacle=None, projector=None, look=None) -> Smoke:
-    """Frame ``smoke.frame + 1`` by physics alone (``smoke`` itself is left as it is); new Gaussians get ``look``
-    (default: the constant initial appearance)."""
+def physics_step(smoke: Smoke, ws: Workspace, ctx: RunContext, look=None) -> Smoke:
+    """Frame ``smoke.frame + 1`` by physics alone (``smoke`` itself is left as it is), around the workspace's
+    obstacle; new Gaussians get ``look`` (default: the constant initial appearance)."""
     t = smoke.frame + 1
     smoke = replace(smoke)  # emit appends to its argument
     emit(smoke, ctx.source, ctx.config, t, look)
     p, u = ws.simulate(smoke.p, smoke.u, smoke.age)
     with torch.no_grad():
         x = engine.advect(smoke.x, p, u, ws.dt, ws.advect_query)
-    if obstacle is not None:
-        x = projector(obstacle, x)
+    x = ws.push_out(x)
     out = Smoke(t, p, u, smoke.age + ws.dt, x, smoke.color, smoke.scale, smoke.rotation, smoke.opacity)
     out.keep_physical(~ws.isolated(out.p))
     return out
 
 
 def rollout(start: Smoke, frames: int, ws: Workspace, ctx: RunContext, obstacle=None) -> Iterator[Smoke]:
-    """Yield ``frames`` future frames after ``start`` (the simulator of ``ws`` keeps ``obstacle`` set)."""
-    from ..engine.obstacle import PointProjector
-
+    """Yield ``frames`` future frames after ``start`` around the scene's obstacles and ``obstacle`` (``ws`` keeps
+    them set)."""
     if frames <= 0:
         raise InputError(None, "--frames", f"must be > 0, got {frames}")
-    ws.sim.set_obstacle(obstacle)
-    projector = PointProjector(ws.advect_query.query_capacity) if obstacle is not None else None
+    ws.set_obstacle(join(ctx.obstacle, obstacle))
     smoke, look = start, inflow_look(start, ctx)
     for _ in range(frames):
-        smoke = physics_step(smoke, ws, ctx, obstacle, projector, look)
+        smoke = physics_step(smoke, ws, ctx, look)
         yield smoke
 
 

@@ -117,9 +117,9 @@ def fit_dynamics(prev: Smoke, ws: Workspace, views: Views, cfg: ReconConfig, gen
         if progress is not None:
             progress.status(**{k: float(v.detach()) for k, v in terms.items()})
     with torch.no_grad():
-        p = p.detach()
+        p = ws.push_out(p.detach())  # with an obstacle, nothing ends the frame inside it
         u = (p - p_prev) / dt
-        x = engine.advect(x_prev, p, u, dt, ws.advect_query)
+        x = ws.push_out(engine.advect(x_prev, p, u, dt, ws.advect_query))
     return DynamicsResult(p, u, x, {k: float(v.detach()) for k, v in terms.items()})
 
 

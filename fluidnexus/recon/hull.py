@@ -1,10 +1,10 @@
-"""Where the smoke is at the first frame: a multi-view visual hull, and the inflow at its foot.
+"""Where the smoke is in a frame: a multi-view visual hull.
 
-The hull seeds the visual particles before their positions are fitted to the first frame (Alg. S1,
-initialisation), and its lowest slab locates the smoke source in the footage itself, which is more reliable
-than a box corner of the calibration: a voxel centre is kept when it projects onto smoke (intensity above
-``threshold``) in every view (a voxel outside some view's image is dropped, which keeps ghosts at the image
-borders out).
+The first frame's hull seeds the visual particles before their positions are fitted to the first frame (Alg. S1,
+initialisation), and the hulls of the first frames with smoke locate the inflow in the footage itself
+(``source_finder``), which is more reliable than a box corner of the calibration. A voxel centre is kept when it
+projects onto smoke (intensity above ``threshold``) in every view (a voxel outside some view's image is dropped,
+which keeps ghosts at the image borders out).
 """
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..camera import Camera
-from ..scene import Source, Volume
+from ..scene import Volume
 
 
 @dataclass(frozen=True)
@@ -58,16 +58,3 @@ def visual_hull(cameras: tuple[Camera, ...], images: np.ndarray, volume: Volume,
             inside &= smoke  # a voxel outside a view's image cannot be confirmed as smoke: it is carved
         kept.append(pts[inside])
     return Hull(np.concatenate(kept), voxel)
-
-
-def source_from_hull(hull: Hull, fallback: Source, slab: float = 0.01, min_points: int = 8) -> Source:
-    """The inflow at the foot of the hull: centre of its lowest ``slab`` metres, at the hull's bottom.
-
-    Keeps ``fallback``'s radius; returns ``fallback`` when the hull is too small to tell.
-    """
-    if len(hull.points) < min_points:
-        return fallback
-    y0 = np.percentile(hull.points[:, 1], 2)
-    foot = hull.points[hull.points[:, 1] <= y0 + slab]
-    cx, cz = foot[:, 0].mean(), foot[:, 2].mean()
-    return Source((float(cx), float(y0), float(cz)), fallback.radius)

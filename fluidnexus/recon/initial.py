@@ -1,9 +1,11 @@
 """The state before the first reconstructed frame (FluidNexus supp. "Initialization").
 
-Physical particles start on a cubic lattice in a vertical cylinder over the source and are stabilised for
-N_stable steps while the emitter seeds more; visual particles start in the first frame's visual hull (or, without
-one, on a finer lattice in a thin cylinder over the source) with the constant initial appearance; their positions
-are then fitted to the first frame (``fit.fit_positions``).
+Physical particles start on a cubic lattice in a cylinder over the source, along its direction, and are
+stabilised for N_stable steps while the emitter seeds more (if the source is on at the first frame); visual
+particles start in the first frame's visual hull (or, without one, on a finer lattice in a thin cylinder over the
+source) with the constant initial appearance; their positions are then fitted to the first frame
+(``fit.fit_positions``). Lattices are laid out for an upward source and turned onto the source's direction
+(``engine.emitter.orient``); buoyancy alone stays vertical (it acts against gravity).
 """
 from __future__ import annotations
 
@@ -11,6 +13,7 @@ import numpy as np
 import torch
 
 from ..engine import SourceDisk, cylinder_lattice
+from ..engine.emitter import orient
 from ..scene import Source
 from .config import ReconConfig
 from .smoke import Smoke
@@ -23,12 +26,14 @@ SOURCE_DEPTH = 0.02  # the initial physical cylinder starts this far below the s
 def physical_source(source: Source, cfg: ReconConfig) -> SourceDisk:
     """The physical emitter: ``physical_emit_spacing`` on a disk of ``physical_emit_radius`` at the source."""
     return SourceDisk(center=tuple(source.center), radius=cfg.physical_emit_radius,
-                      spacing=cfg.physical_emit_spacing, jitter=0.1)
+                      spacing=cfg.physical_emit_spacing, jitter=0.1, velocity=source.velocity,
+                      direction=source.direction)
 
 
 def visual_source(source: Source, cfg: ReconConfig) -> SourceDisk:
     """The visual emitter: ``visual_spacing`` on a disk of ``visual_radius`` at the source."""
-    return SourceDisk(center=tuple(source.center), radius=cfg.visual_radius, spacing=cfg.visual_spacing, jitter=0.1)
+    return SourceDisk(center=tuple(source.center), radius=cfg.visual_radius, spacing=cfg.visual_spacing, jitter=0.1,
+                      direction=source.direction)
 
 
 def frame_rng(seed: int, frame: int) -> np.random.Generator:
@@ -52,10 +57,11 @@ def initial_smoke(source: Source, visual: np.ndarray, cfg: ReconConfig, ws: Work
     empty = torch.zeros((0, 3), dtype=dtype)
     smoke = Smoke(frame, empty, empty, torch.zeros(0, dtype=dtype), empty, torch.zeros((0, cfg.channels), dtype=dtype),
                   empty, torch.zeros((0, 4), dtype=dtype), torch.zeros(0, dtype=dtype))
-    smoke.add_physical(torch.as_tensor(lattice))
+    smoke.add_physical(torch.as_tensor(orient(lattice, source.center, source.direction)))
     emitter = physical_source(source, cfg)
     for step in range(cfg.stabilization_steps):
-        smoke.add_physical(torch.as_tensor(emitter.sample(frame_rng(cfg.seed, -1 - step))))
+        if source.emits_at(frame):
+            smoke.add_physical(torch.as_tensor(emitter.sample(frame_rng(cfg.seed, -1 - step))), emitter.velocity)
         smoke.p, smoke.u = ws.simulate(smoke.p, smoke.u, smoke.age)
         smoke.age = smoke.age + dt
         smoke.keep_physical(~ws.isolated(smoke.p))
@@ -68,16 +74,21 @@ def initial_visual(source: Source, hull_points: np.ndarray, cfg: ReconConfig, mi
     if len(hull_points) >= min_points:
         return hull_points
     cx, cy, cz = source.center
-    return cylinder_lattice((cx, cz), cfg.init_visual_radius, cy, cy + cfg.init_visual_height, cfg.visual_spacing)
+    return orient(cylinder_lattice((cx, cz), cfg.init_visual_radius, cy, cy + cfg.init_visual_height,
+                                   cfg.visual_spacing), source.center, source.direction)
 
 
 def emit(smoke: Smoke, source: Source, cfg: ReconConfig, frame: int, look=None) -> None:
-    """Seed one frame's new physical and visual particles at the source.
+    """Seed one frame's new physical and visual particles at the source (nothing outside its emission window);
+    the physical ones leave it at the inflow velocity.
 
     ``look`` (colour [C] or a float, scale, opacity) is the new Gaussians' appearance; default the constant initial
     appearance of ``cfg``.
     """
+    if not source.emits_at(frame):
+        return
     rng = frame_rng(cfg.seed, frame)
-    smoke.add_physical(torch.as_tensor(physical_source(source, cfg).sample(rng)))
+    emitter = physical_source(source, cfg)
+    smoke.add_physical(torch.as_tensor(emitter.sample(rng)), emitter.velocity)
     color, scale, opacity = look if look is not None else (cfg.color0, cfg.scale0, cfg.opacity0)
     smoke.add_visual(torch.as_tensor(visual_source(source, cfg).sample(rng)), color, scale, opacity)

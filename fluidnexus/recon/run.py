@@ -35,9 +35,10 @@ from ..state import frame_path, load_frame, save_frame
 from .config import ReconConfig, differing_keys
 from .fit import Views, fit_appearance, fit_dynamics, fit_positions
 from ..engine import cylinder_lattice
-from .hull import source_from_hull, visual_hull
 from .initial import emit, frame_generator, initial_smoke, initial_visual, physical_source, visual_source
 from .observations import load_observations, resolve_frames
+from .source_finder import FoundSource, find_source
+from ..obstacles import engine_obstacle
 from .smoke import Smoke
 from .timing import Stopwatch
 from .workspace import Workspace
@@ -84,15 +85,14 @@ def capacities(n_frames: int, setup: RunSetup, source: Source, n_visual: int) ->
             n_visual + (n_frames + 1) * visual_source(source, cfg).count + 64)
 
 
-def locate_smoke(scene: Scene, obs, cfg: ReconConfig) -> tuple[Source, np.ndarray]:
-    """The inflow and the visual seeds from the first frame's visual hull (the scene's source without one)."""
-    fallback = scene_source(scene)
-    hull_points = np.zeros((0, 3))
-    if scene.volume is not None:
-        hull = visual_hull(obs.cameras, obs.frame(obs.first), scene.volume, cfg.visual_spacing)
-        fallback = source_from_hull(hull, fallback, slab=0.01 * cfg.length_scale)
-        hull_points = hull.points
-    return fallback, initial_visual(fallback, hull_points, cfg)
+def locate_smoke(scene: Scene, obs, cfg: ReconConfig, obstacle=None) -> tuple[FoundSource, np.ndarray]:
+    """The inflow (declared, or found in the first frames with smoke: ``source_finder``) and the visual seeds
+    from the first frame's visual hull, none inside an obstacle."""
+    found = find_source(scene, obs, cfg.visual_spacing, 0.01 * cfg.length_scale, scene_source(scene))
+    seeds = initial_visual(found.source, found.hull_points, cfg)
+    if obstacle is not None and len(seeds):
+        seeds = seeds[obstacle.distance(seeds) > 0]
+    return found, seeds
 
 
 def _prepare_folder(out: Path, scene: Scene, setup: RunSetup, frames: tuple[int, int], resume: bool) -> int:
@@ -142,19 +142,26 @@ def reconstruct(scene: Scene, out: str | Path, setup: RunSetup, resume: bool = F
     out = Path(out)
     cfg = setup.config
     frames = resolve_frames(scene, cfg.frames)
-    setup = replace(setup, config=replace(cfg, frames=frames))
+    obstacle = engine_obstacle(scene.obstacles, scene.root, scene.volume)  # before anything is written
+    if obstacle is not None and cfg.lambda_next:
+        log.info("the scene has obstacles: the look-ahead term is off (a step with an obstacle has no gradient)")
+    setup = replace(setup, config=replace(cfg, frames=frames, lambda_next=0.0 if obstacle else cfg.lambda_next))
     cfg = setup.config
     limit = memory.parse_limit(None) if max_memory is None else max_memory
     memory.check(memory.recon_estimate(scene, setup, frames, 0), limit)
     if not resume:
         _refuse_occupied(out)
     obs = load_observations(scene, frames, cfg.resolution, cfg.channels)
-    source, seeds = locate_smoke(scene, obs, cfg)
+    found, seeds = locate_smoke(scene, obs, cfg, obstacle)
+    source = found.source
     log.info("%s", memory.check(memory.recon_estimate(scene, setup, frames, len(seeds)), limit).describe())
     first = _prepare_folder(out, scene, setup, frames, resume)
     if first == frames[0]:  # predict/interact read the inflow from run.json, also of an unfinished run
-        write_json(out / "run.json", {**read_json(out / "run.json"), "source": source.to_dict()})
+        write_json(out / "run.json", {**read_json(out / "run.json"), "source": source.to_dict(),
+                                      "source_finder": found.record,
+                                      "obstacles": [o.to_dict() for o in scene.obstacles]})
     ws = Workspace(*capacities(frames[1] - frames[0], setup, source, len(seeds)), setup.solver, setup.model)
+    ws.set_obstacle(obstacle)
     handler = logging.FileHandler(out / "logs" / "recon.log")
     handler.setFormatter(logging.Formatter("%(asctime)s %(message)s"))
     log.addHandler(handler)
@@ -209,6 +216,7 @@ def _first_frame(source, seeds, obs, ws, cfg, bar, watch) -> Smoke:
     smoke = initial_smoke(source, seeds, cfg, ws, start)
     views = _views(obs, start, ws.dtype)
     fit_positions(smoke, views, cfg, frame_generator(cfg.seed, start), bar, watch)
+    smoke.x = ws.push_out(smoke.x)
     fit_appearance(smoke, views, cfg, frame_generator(cfg.seed, start), bar, watch)
     return smoke
 

@@ -56,11 +56,14 @@ class Smoke:
         self.rotation = torch.cat([self.rotation, rot])
         self.opacity = torch.cat([self.opacity, torch.full((k,), opacity, dtype=dtype)])
 
-    def add_physical(self, positions: torch.Tensor) -> None:
-        """Append physical particles at rest with age 0."""
+    def add_physical(self, positions: torch.Tensor, velocity=None) -> None:
+        """Append physical particles with age 0, at rest or moving at ``velocity`` (3,) m/s."""
         k, dtype = positions.shape[0], self.p.dtype
         self.p = torch.cat([self.p, positions.to(dtype)])
-        self.u = torch.cat([self.u, torch.zeros((k, 3), dtype=dtype)])
+        u = torch.zeros((k, 3), dtype=dtype)
+        if velocity is not None:
+            u[:] = torch.as_tensor(velocity, dtype=dtype)
+        self.u = torch.cat([self.u, u])
         self.age = torch.cat([self.age, torch.zeros(k, dtype=dtype)])
 
     def keep_physical(self, mask: torch.Tensor) -> int:

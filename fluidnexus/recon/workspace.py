@@ -35,6 +35,21 @@ class Workspace:
         self._pair_dtype = np.float64 if self.dtype == torch.float64 else np.float32
         self._pair_table = NeighborTable(visual_capacity, width=32)
         engine.reserve_gaussians(visual_capacity)  # the render kernels compile once, not at every doubling
+        self.obstacle, self._projector = None, None
+
+    def set_obstacle(self, obstacle) -> None:
+        """A rigid body (``engine.obstacle``; None for none) that no particle ends a step inside: the simulator
+        moves physical particles out at every step, :meth:`push_out` moves fitted or advected points out."""
+        from ..engine.obstacle import PointProjector
+
+        self.obstacle = obstacle
+        self.sim.set_obstacle(obstacle)
+        self._projector = None if obstacle is None else PointProjector(
+            max(self.sim.capacity, self.advect_query.query_capacity))
+
+    def push_out(self, points: torch.Tensor) -> torch.Tensor:
+        """``points`` [K, 3] moved out of the obstacle (the tensor itself without one)."""
+        return points if self.obstacle is None else self._projector(self.obstacle, points)
 
     @property
     def dt(self) -> float:
