@@ -207,12 +207,16 @@ def fill_unseen(plate: np.ndarray, seen: np.ndarray, video: np.ndarray) -> np.nd
 
 
 def hulls(mask: np.ndarray) -> np.ndarray:
-    """[H, W] bool: the convex hull of every connected region of ``mask`` larger than a few pixels."""
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+    """[H, W] bool: the convex hull of each group of ``mask`` pixels, a group being the pixels less than about
+    4 % of the image size apart (unsure stripes split an object's confident part into pieces)."""
+    h, w = mask.shape
+    r = max(1, round(0.02 * max(h, w)))
+    near = cv2.dilate(mask.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1)))
+    count, labels = cv2.connectedComponents(near, connectivity=8)
     out = np.zeros(mask.shape, np.uint8)
     for k in range(1, count):
-        if stats[k, cv2.CC_STAT_AREA] >= 4:
-            ys, xs = np.nonzero(labels == k)
+        ys, xs = np.nonzero((labels == k) & mask)
+        if len(xs) >= 4:
             cv2.fillConvexPoly(out, cv2.convexHull(np.stack([xs, ys], 1).astype(np.int32)), 1)
     return out.astype(bool)
 
