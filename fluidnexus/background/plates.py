@@ -109,16 +109,18 @@ def color_plate(video: np.ndarray, quiet: np.ndarray, temporal: PlateEstimate, c
                 noise: float) -> PlateEstimate:
     """A known backdrop colour where the pixel shows it at quiet moments; the temporal mode where it never does
     and is a static object: confidently something else, or an unsure pixel inside the convex hull of such a
-    region (smoke that often passes in front of an object leaves holes in it); the colour, with the temporal
-    confidence, elsewhere."""
+    region (smoke that often passes in front of an object leaves holes in it; those take the object's values
+    from its confident pixels around them); the colour, with the temporal confidence, elsewhere."""
     tol = _difference(noise)
     shown = np.zeros(video.shape[1:3], np.int32)
     for t in range(len(video)):
         shown += quiet[t] & (np.abs(video[t] - color).max(axis=2) < tol)
     seen_color = shown >= max(2, round(0.02 * len(video)))
-    obj = ~seen_color & (temporal.confidence >= CONFIDENT)
-    obj |= ~seen_color & hulls(obj)
-    plate = np.where(obj[..., None], temporal.plate, color[None, None, :]).astype(np.float32)
+    core = ~seen_color & (temporal.confidence >= CONFIDENT)
+    obj = core | (~seen_color & hulls(core))
+    inside = fill_unseen(temporal.plate, core, video) if core.any() else temporal.plate  # unsure: from the core
+    plate = np.where(core[..., None], temporal.plate, np.where(obj[..., None], inside, color[None, None, :]))
+    plate = plate.astype(np.float32)
     conf = np.where(seen_color, 1.0, temporal.confidence).astype(np.float32)
     detail = {"color": [round(float(c), 6) for c in color], "object_fraction": round(float(obj.mean()), 4)}
     return PlateEstimate(plate, conf, "color", detail)
@@ -208,9 +210,9 @@ def fill_unseen(plate: np.ndarray, seen: np.ndarray, video: np.ndarray) -> np.nd
 
 def hulls(mask: np.ndarray) -> np.ndarray:
     """[H, W] bool: the convex hull of each group of ``mask`` pixels, a group being the pixels less than about
-    4 % of the image size apart (unsure stripes split an object's confident part into pieces)."""
+    8 % of the image size apart (unsure stripes split an object's confident part into pieces)."""
     h, w = mask.shape
-    r = max(1, round(0.02 * max(h, w)))
+    r = max(1, round(0.04 * max(h, w)))
     near = cv2.dilate(mask.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1)))
     count, labels = cv2.connectedComponents(near, connectivity=8)
     out = np.zeros(mask.shape, np.uint8)

@@ -62,3 +62,19 @@ def test_smoke_that_never_leaves_is_refused():
     with pytest.raises(NeverClear):
         estimate_plate(video)
     assert estimate_plate(video, np.array([0.2, 0.2, 0.2], np.float32)).source == "color"  # a colour resolves it
+
+
+def test_known_color_keeps_an_object_whole_under_smoke_that_never_leaves_part_of_it():
+    """A red disk on a white backdrop with a stripe of ever-changing smoke across it: the stripe's pixels are
+    never seen, yet the plate keeps the whole disk (its hull), not the backdrop colour."""
+    white = np.ones(3, np.float32)
+    yy, xx = np.mgrid[0:48, 0:64]
+    disk = (yy - 24) ** 2 + (xx - 32) ** 2 < 12 ** 2
+    back = np.where(disk[..., None], np.float32([0.8, 0.3, 0.25]), white).astype(np.float32)
+    alpha = smoke_alpha(3)
+    stripe = np.broadcast_to(np.abs(xx - 32) < 2, alpha.shape)
+    alpha = np.where(stripe, 0.3 + 0.6 * np.random.default_rng(1).random(alpha.shape), alpha).astype(np.float32)
+    est = estimate_plate(composite(back, alpha, "dark"), white)
+    assert est.source == "color"
+    assert (np.abs(est.plate - back).max(axis=2)[disk] < 0.15).mean() > 0.97
+    assert est.confidence[disk & (xx == 32)].max() < 0.5  # ... flagged unsure where never seen
