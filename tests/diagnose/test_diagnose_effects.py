@@ -137,7 +137,7 @@ def test_diagnose_pbf_gas_control_keeps_paper_gas(template, tmp_path, ti_engine)
 
 @pytest.mark.xfail(strict=False, reason="with the structure level (2026-11-23, 10 evaluations): the structure is "
                    "ambient_air (validation error 0.783 -> 0.608, 22.4 %) and wind is named (38.6 %), but at 0.126 m/s "
-                   "for 0.088 (+43 %, limit 40 %) and 30.6 deg off (limit 25); on the paper's gas alone it was 0.095 m/s, "
+                   "for 0.088 (+43 %, limit 40 %) and 30.6 deg off (limit 25); with the paper's gas it was 0.095 m/s, "
                    "2 deg off. The air's wind search (vx, vz from the centroid drift, Nelder-Mead) is not tuned yet")
 def test_diagnose_finds_hidden_wind(template, tmp_path, ti_engine):
     rng = np.random.default_rng(11)
