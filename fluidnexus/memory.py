@@ -25,6 +25,9 @@ RUNTIME_BYTES = 450 * 2**20  # interpreter, torch, Taichi runtime and compiled k
 F32 = 4
 NEIGHBOURS = 64  # neighbour-table width a dense PBF gas grows to (it starts at 48)
 HULL_VOXEL_BYTES = 160  # per voxel tested at once: centre (float64 x 3), projection, depth, pixel indices, masks
+# per Gaussian: the torch graph of one differentiable render (projected means, covariances, conics, colours with
+# their gradients) and its tile-list entries; measured: Sphere, 98.7k Gaussians at 400x400 (BENCHMARKS.md)
+RENDER_GRAPH_BYTES = 3072
 
 
 @dataclass
@@ -121,7 +124,7 @@ def visual_bytes(capacity: int, channels: int) -> int:
     query = 2 * F32 * (3 * 3 + 1) + F32 * (1 + NEIGHBOURS)
     pairs = F32 * (3 + 3 + 4 + 32 + 3)
     state = 4 * F32 * (3 + channels + 3 + 4 + 1)  # value, gradient, two Adam moments
-    return capacity * (splat + query + pairs + state)
+    return capacity * (splat + query + pairs + state + RENDER_GRAPH_BYTES)
 
 
 def image_bytes(width: int, height: int, channels: int, views: int) -> int:
