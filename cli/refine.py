@@ -11,7 +11,7 @@ from fluidnexus.scene import View, load_scene, save_views
 from fluidnexus.video import write_video
 
 from .options import max_memory_option
-from .synth import read_footage, resolution_option
+from .synth import read_footage, resized, resolution_option, stored_size
 
 log = logging.getLogger("fluidnexus")
 
@@ -53,7 +53,8 @@ def refine(scene_dir: Path, method: str, weights: Path | None, lora: Path | None
     if not novel:
         raise InputError(scene.root / "scene.json", "views", "no novel view has a video yet; run synth first")
     scale = resolve_resolution(resolution, scene)
-    size = (novel[0].camera.scaled(scale).width, novel[0].camera.scaled(scale).height)
+    working = novel[0].camera.scaled(scale)
+    size = (working.width, working.height)
     check(video_estimate("refine", scene.frame_count, *size, 4), limit)
     if method == "cogvideox":
         from fluidnexus.gen.cogvideox import DEFAULT_PROMPT, CogVideoXConfig
@@ -70,7 +71,8 @@ def refine(scene_dir: Path, method: str, weights: Path | None, lora: Path | None
         unrefined = provenance.get("unrefined", view.video)  # re-running refine starts from the rough video
         log.info("refine %s: %s", method, view.name)
         rel = f"videos/{view.name}_refined.mp4"
-        write_video(scene.root / rel, refiner.refine(read_footage(scene.root / unrefined, size)), scene.fps)
+        refined = resized(refiner.refine(read_footage(scene.root / unrefined, size)), stored_size(view.camera, working))
+        write_video(scene.root / rel, refined, scene.fps)
         provenance.update({"unrefined": unrefined, "refine": {**refiner.provenance(), "resolution": scale}})
         done[view.name] = View(view.name, view.role, view.camera, rel, provenance)
     save_views(scene.root, tuple(done.get(v.name, v) for v in scene.views))

@@ -21,6 +21,24 @@ resolution_option = click.option(
          "recon reads the written videos as they are.")
 
 
+def stored_size(camera, working) -> tuple[int, int]:
+    """The size a novel video is written at: the working camera's, unless a side is odd (the video writer pads
+    odd sizes, which would no longer match the camera), then the full camera's."""
+    if working.width % 2 or working.height % 2:
+        return camera.width, camera.height
+    return working.width, working.height
+
+
+def resized(video: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """[T, H, W, C] resampled to ``size`` (width, height); unchanged when it already has that size."""
+    import cv2
+
+    if video.shape[1:3] == (size[1], size[0]):
+        return video
+    return np.stack([cv2.resize(f, size, interpolation=cv2.INTER_LINEAR).reshape(size[1], size[0], -1)
+                     for f in video])
+
+
 def read_footage(path: Path, size: tuple[int, int] | None = None) -> np.ndarray:
     """[T, H, W, C] float32 at ``size`` (width, height; None: the file's); a gray video stored as RGB
     (R = G = B) comes back with C = 1."""
@@ -87,7 +105,9 @@ def synth(scene_dir: Path, method: str, weights: Path | None, input_name: str | 
     for view in novel:
         log.info("synth %s: %s -> %s", method, source.name, view.name)
         rel = f"videos/{view.name}_synth.mp4"
-        write_video(scene.root / rel, synthesizer.synthesize(inp, view.camera.scaled(scale)), scene.fps)
+        working = view.camera.scaled(scale)
+        video = resized(synthesizer.synthesize(inp, working), stored_size(view.camera, working))
+        write_video(scene.root / rel, video, scene.fps)
         done[view.name] = View(view.name, view.role, view.camera, rel,
                                {"synth": {**synthesizer.provenance(), "input": source.name, "resolution": scale}})
     save_views(scene.root, tuple(done.get(v.name, v) for v in scene.views))

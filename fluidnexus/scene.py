@@ -397,8 +397,7 @@ def _fits_camera(width: int, height: int, camera: Camera) -> bool:
     if (width, height) == (camera.width, camera.height):
         return True
     sizes = (camera.scaled(f) for f in (width / camera.width, height / camera.height))
-    return any((width, height) in ((c.width, c.height), (c.width + c.width % 2, c.height + c.height % 2))
-               for c in sizes)  # write_video pads an odd size to even
+    return any((c.width, c.height) == (width, height) for c in sizes)
 
 
 def check_media(root: Path, scene_file: Path, frame_count: int, entries) -> None:
