@@ -1,0 +1,399 @@
+"""The static layer: a set of Gaussians that do not move (backdrop, floor, obstacles), fitted to the views' clean
+plates with the project's splat renderer (issue 16, part 3; docs/static-layer.md).
+
+The fit is a small 3D Gaussian splatting optimisation (Kerbl et al. 2023):
+
+- **Initialisation**, sized by the scene's volume: a lattice of faint Gaussians filling the volume, and for each
+  camera a grid of rays through its image, each seeding one Gaussian where the views agree best along it (a plane
+  sweep over depths from the volume's near side out to a shell ``shell`` half-diagonals of the volume from its
+  centre: the depth of least colour variance across the plates that see it), with the plates' mean colour there.
+  What lies beyond every Gaussian is one learned colour (initialised to the plates' median).
+- **Loss** per view: ``0.8 L1 + 0.2 (1 - SSIM)`` (the reconstruction's image loss) weighted by the plate's
+  confidence w: the target is ``w plate + (1 - w) render`` and the render's gradient is scaled by w (the render's
+  share held fixed), so a pixel of confidence 0 (smoke that never left) pulls nothing and what the plate shows
+  there does not matter, not even inside SSIM's windows.
+- **Densify and prune** every ``densify_every`` iterations until ``densify_until``: Gaussians whose mean
+  screen-space position gradient exceeds ``grad_threshold`` (in normalised device units, 3DGS's 2e-4) are cloned
+  when small (largest scale under ``percent_dense`` of the volume's size) and split in two when large; Gaussians
+  with opacity under ``min_opacity`` or larger than ``max_scale`` of the volume's size are removed.
+
+Every random choice comes from one generator seeded by ``seed``, so a fit is deterministic (the renderer's
+gradients are bit-identical from run to run). The result is saved as ``RUN/static.npz`` (:func:`save_static`) and
+read back with :func:`load_static`; :func:`render_static` draws it from any camera.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from .. import engine
+from ..atomic import atomic_file
+from ..camera import Camera
+from ..engine.tensors import torch_dtype
+from ..errors import InputError
+from ..progress import progress
+from ..recon.losses import image_loss
+from ..scene_scale import box_size
+
+STATIC_FILE = "static.npz"
+FORMAT = "fluidnexus-static/1"
+
+
+@dataclass(frozen=True)
+class StaticConfig:
+    """Settings of a static-layer fit. Lengths are fractions of the volume's size (cube root of its volume)."""
+
+    iterations: int = 600
+    lattice: int = 6  # Gaussians per axis of the volume lattice
+    rays: int = 32  # rays per image side per view
+    depths: int = 48  # candidate depths per ray of the plane sweep, from the volume's near side to the shell
+    shell: float = 2.0  # the outermost seeds lie this many half-diagonals from the volume's centre
+    initial_opacity: float = 0.1
+    lr_position: float = 2e-3  # x the volume's size per step
+    lr_scale: float = 0.01
+    lr_rotation: float = 0.002
+    lr_opacity: float = 0.05
+    lr_color: float = 0.02
+    densify_every: int = 100
+    densify_from: int = 100
+    densify_until: int = 450
+    grad_threshold: float = 2e-4
+    percent_dense: float = 0.01
+    min_opacity: float = 0.005
+    max_scale: float = 0.5
+    max_gaussians: int = 10000
+    w_l1: float = 0.8
+    w_dssim: float = 0.2
+    seed: int = 0
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass
+class StaticLayer:
+    """N static Gaussians (numpy float32): means [N, 3] m, scales [N, 3] m (standard deviations), quats [N, 4]
+    (w, x, y, z), opacities [N], colors [N, C]; and ``background`` [C], the colour beyond every Gaussian."""
+
+    means: np.ndarray
+    scales: np.ndarray
+    quats: np.ndarray
+    opacities: np.ndarray
+    colors: np.ndarray
+    background: np.ndarray
+    info: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.means.shape[0])
+
+    def gaussians(self, dtype=torch.float32) -> engine.Gaussians:
+        """The layer as a frozen ``engine.Gaussians`` (the renderer's ``static=``)."""
+        return engine.Gaussians(*(torch.as_tensor(a, dtype=dtype) for a in
+                                  (self.means, self.scales, self.quats, self.opacities, self.colors)))
+
+
+def render_static(layer: StaticLayer, camera: Camera, return_depth: bool = False):
+    """The static layer seen by ``camera``, over its background colour: (image [H, W, C], alpha [H, W], depth)."""
+    dtype = torch_dtype()
+    empty = torch.zeros((0, 3), dtype=dtype)
+    channels = layer.colors.shape[1]
+    with torch.no_grad():
+        return engine.render(camera, empty, empty, torch.zeros((0, 4), dtype=dtype), torch.zeros(0, dtype=dtype),
+                             torch.zeros((0, channels), dtype=dtype), torch.as_tensor(layer.background, dtype=dtype),
+                             return_depth=return_depth, static=layer.gaussians(dtype))
+
+
+# ---- initialisation ------------------------------------------------------------------------------------------
+def _ray_seeds(index: int, cameras, plates, confidences, fill: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+               cfg: StaticConfig, generator: torch.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """One seed per ray of a grid through view ``index``'s image, at the depth where the views agree best (a
+    plane sweep: ``cfg.depths`` candidate depths from the volume's near side out to the shell, each scored by the
+    variance of the plates' colours where the other views see it), with the mean of those colours (``fill``
+    where the ray's own plate is unsure, confidence under 0.5). A ray no other view sees at any depth seeds at
+    the shell with its own plate's colour."""
+    camera, plate, confidence = cameras[index], plates[index], confidences[index]
+    center = 0.5 * (lo + hi)
+    half = 0.5 * float(np.linalg.norm(hi - lo))
+    h, w = plate.shape[:2]
+    cols = (np.arange(cfg.rays) + 0.5) * w / cfg.rays
+    rows = (np.arange(cfg.rays) + 0.5) * h / cfg.rays
+    uv = np.stack(np.meshgrid(cols, rows), axis=-1).reshape(-1, 2)
+    uv = uv + (torch.rand(uv.shape, generator=generator, dtype=torch.float64).numpy() - 0.5) * [w / cfg.rays,
+                                                                                               h / cfg.rays]
+    dist = float(np.linalg.norm(camera.center - center))
+    depths = np.linspace(max(dist - half, 1e-3 * half), dist + cfg.shell * half, cfg.depths)
+    candidates = np.stack([camera.unproject(uv, d) for d in depths], axis=1)  # [R, D, 3]
+    total = np.zeros(candidates.shape[:2] + (plate.shape[-1],))
+    square = np.zeros(candidates.shape[:2])
+    count = np.zeros(candidates.shape[:2])
+    for cam, img, conf in zip(cameras, plates, confidences):
+        px, z = cam.project(candidates.reshape(-1, 3))
+        col, row = np.floor(px[:, 0]).astype(int), np.floor(px[:, 1]).astype(int)
+        ok = (z > 0) & (col >= 0) & (col < cam.width) & (row >= 0) & (row < cam.height)
+        ok[ok] &= conf[row[ok], col[ok]] >= 0.5
+        value = np.zeros((len(ok), img.shape[-1]))
+        value[ok] = img[row[ok], col[ok]]
+        ok, value = ok.reshape(count.shape), value.reshape(total.shape)
+        total += value
+        square += (value ** 2).sum(axis=-1)
+        count += ok
+    mean = total / np.maximum(count, 1)[..., None]
+    variance = square / np.maximum(count, 1) - (mean ** 2).sum(axis=-1)
+    variance[count < 2] = np.inf  # seen by this view alone: no agreement to measure
+    best = np.argmin(variance, axis=1)
+    rays = np.arange(len(uv))
+    alone = ~np.isfinite(variance[rays, best])
+    best[alone] = cfg.depths - 1  # what only this view sees goes to the shell, behind everything
+    points, colors = candidates[rays, best], mean[rays, best]
+    colors[alone] = plate[np.clip(uv[alone, 1].astype(int), 0, h - 1), np.clip(uv[alone, 0].astype(int), 0, w - 1)]
+    pix = np.clip(uv.astype(int), 0, [w - 1, h - 1])
+    colors[confidence[pix[:, 1], pix[:, 0]] < 0.5] = fill
+    return points, colors
+
+
+def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig) -> StaticLayer:
+    """The seeds of a fit (module docstring), deterministic in ``cfg.seed``; plate pixels with confidence under
+    0.5 are not read (the median colour is taken over the sure pixels of every plate)."""
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    generator = torch.Generator().manual_seed(cfg.seed)
+    size = box_size(hi - lo)
+    axes = [lo[k] + (np.arange(cfg.lattice) + 0.5) * (hi[k] - lo[k]) / cfg.lattice for k in range(3)]
+    lattice = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    sure = np.concatenate([p[c >= 0.5] for p, c in zip(plates, confidences)])
+    if len(sure) == 0:
+        raise InputError(None, "backgrounds", "every plate pixel has confidence under 0.5: nothing to fit")
+    median = np.median(sure, axis=0)
+    points, colors = [lattice], [np.tile(median, (len(lattice), 1))]
+    for index in range(len(cameras)):
+        p, c = _ray_seeds(index, cameras, plates, confidences, median, lo, hi, cfg, generator)
+        points.append(p)
+        colors.append(c)
+    means = np.concatenate(points)
+    # each seed as wide as its spacing: the lattice's inside the volume, a ray seed's the pixel footprint there
+    spacing = np.full(len(means), size / cfg.lattice)
+    offset = len(lattice)
+    for camera in cameras:
+        n = cfg.rays * cfg.rays
+        _, z = camera.project(means[offset:offset + n])
+        spacing[offset:offset + n] = np.abs(z) * camera.width / cfg.rays / camera.K[0, 0]
+        offset += n
+    quats = np.tile([1.0, 0.0, 0.0, 0.0], (len(means), 1))
+    return StaticLayer(means.astype(np.float32), np.tile(0.5 * spacing[:, None], (1, 3)).astype(np.float32),
+                       quats.astype(np.float32), np.full(len(means), cfg.initial_opacity, np.float32),
+                       np.concatenate(colors).astype(np.float32), median.astype(np.float32))
+
+
+# ---- the optimisation ------------------------------------------------------------------------------------------
+class _Params:
+    """The optimised tensors: means, log scales, quaternions, opacity logits, colours, and the background colour."""
+
+    def __init__(self, layer: StaticLayer, dtype):
+        def leaf(a):
+            return torch.as_tensor(np.asarray(a), dtype=dtype).clone().requires_grad_(True)
+
+        op = np.clip(layer.opacities, 1e-4, 1 - 1e-4)
+        self.tensors = {"means": leaf(layer.means), "log_scales": leaf(np.log(layer.scales)),
+                        "quats": leaf(layer.quats), "logit_opacity": leaf(np.log(op / (1 - op))),
+                        "colors": leaf(layer.colors)}
+        self.background = leaf(layer.background)
+
+    def gaussians(self) -> tuple[torch.Tensor, ...]:
+        t = self.tensors
+        return (t["means"], t["log_scales"].exp(), t["quats"], torch.sigmoid(t["logit_opacity"]),
+                t["colors"].clamp(0.0, 1.0))
+
+    def layer(self, info: dict) -> StaticLayer:
+        means, scales, quats, opacities, colors = (x.detach().numpy().astype(np.float32) for x in self.gaussians())
+        quats = quats / np.linalg.norm(quats, axis=1, keepdims=True)
+        return StaticLayer(means, scales, quats, opacities, colors,
+                           self.background.detach().clamp(0, 1).numpy().astype(np.float32), info)
+
+
+def _optimizer(params: _Params, cfg: StaticConfig, size: float) -> torch.optim.Adam:
+    t = params.tensors
+    return torch.optim.Adam([{"params": [t["means"]], "lr": cfg.lr_position * size},
+                             {"params": [t["log_scales"]], "lr": cfg.lr_scale},
+                             {"params": [t["quats"]], "lr": cfg.lr_rotation},
+                             {"params": [t["logit_opacity"]], "lr": cfg.lr_opacity},
+                             {"params": [t["colors"], params.background], "lr": cfg.lr_color}], eps=1e-15)
+
+
+def _densify(params: _Params, grad_sum: np.ndarray, seen: np.ndarray, cfg: StaticConfig, size: float,
+             generator: torch.Generator) -> _Params:
+    """3DGS's adaptive density control: clone small and split large Gaussians with large screen-space gradients,
+    then prune faint and oversized ones. Returns new parameters (the optimiser is rebuilt by the caller)."""
+    with torch.no_grad():
+        t = {k: v.detach().clone() for k, v in params.tensors.items()}
+        n = t["means"].shape[0]
+        scales = t["log_scales"].exp()
+        mean_grad = np.where(seen > 0, grad_sum / np.maximum(seen, 1), 0.0)
+        hot = torch.as_tensor(mean_grad > cfg.grad_threshold)
+        room = max(0, cfg.max_gaussians - n)
+        if int(hot.sum()) > room:  # keep the hottest that fit
+            order = np.argsort(-mean_grad)[:room]
+            hot = torch.zeros(n, dtype=torch.bool)
+            hot[torch.as_tensor(order, dtype=torch.long)] = True
+        large = scales.max(dim=1).values > cfg.percent_dense * size
+        clone, split = hot & ~large, hot & large
+        new = {k: [v] for k, v in t.items()}
+        for k, v in t.items():
+            new[k].append(v[clone])
+        if bool(split.any()):
+            # two samples from each split Gaussian, 1.6 times narrower (Kerbl et al. 2023, Sec. 5.2)
+            s = scales[split]
+            q = torch.nn.functional.normalize(t["quats"][split], dim=1)
+            rot = _rotation_matrices(q)
+            for _ in range(2):
+                offset = torch.randn(s.shape, generator=generator, dtype=s.dtype) * s
+                for k, v in t.items():
+                    value = v[split]
+                    if k == "means":
+                        value = value + torch.einsum("nij,nj->ni", rot, offset)
+                    elif k == "log_scales":
+                        value = value - math.log(1.6)
+                    new[k].append(value)
+        keep = torch.cat([~split, torch.ones(int(clone.sum()) + 2 * int(split.sum()), dtype=torch.bool)])
+        merged = {k: torch.cat(v)[keep] for k, v in new.items()}
+        alive = (torch.sigmoid(merged["logit_opacity"]) >= cfg.min_opacity) & \
+                (merged["log_scales"].exp().max(dim=1).values <= cfg.max_scale * size)
+        out = object.__new__(_Params)
+        out.tensors = {k: v[alive].clone().requires_grad_(True) for k, v in merged.items()}
+        out.background = params.background.detach().clone().requires_grad_(True)
+        return out
+
+
+def _rotation_matrices(q: torch.Tensor) -> torch.Tensor:
+    """[N, 3, 3] body-to-world rotations of unit quaternions (w, x, y, z)."""
+    w, x, y, z = q.unbind(1)
+    return torch.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+                        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+                        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], dim=1).reshape(-1, 3, 3)
+
+
+def _check_inputs(cameras, plates, confidences) -> None:
+    if not cameras:
+        raise InputError(None, "backgrounds", "the static layer needs at least one view with a plate")
+    for camera, plate, conf in zip(cameras, plates, confidences):
+        if plate.shape[:2] != (camera.height, camera.width) or conf.shape != plate.shape[:2]:
+            raise InputError(None, "backgrounds", f"a plate of {plate.shape[1]}x{plate.shape[0]} px (confidence "
+                                                  f"{conf.shape[1]}x{conf.shape[0]}) for a camera of "
+                                                  f"{camera.width}x{camera.height}")
+
+
+def fit_static(cameras, plates, confidences, lo, hi, cfg: StaticConfig = StaticConfig()) -> StaticLayer:
+    """Fit a static layer to clean plates.
+
+    Args:
+        cameras: the views' cameras [V], at the plates' size.
+        plates: [V] arrays [H, W, C] in [0, 1]; confidences: [V] arrays [H, W] in [0, 1].
+        lo, hi: the scene volume's corners (metres); every length of the fit follows its size.
+        cfg: settings; ``cfg.seed`` makes the fit deterministic.
+    Returns:
+        The fitted :class:`StaticLayer`; ``info`` holds the final loss, the Gaussian count and the settings.
+    """
+    _check_inputs(cameras, plates, confidences)
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    size = box_size(hi - lo)
+    generator = torch.Generator().manual_seed(cfg.seed)
+    dtype = torch_dtype()
+    targets = [torch.as_tensor(np.asarray(p), dtype=dtype) for p in plates]
+    weights = [torch.as_tensor(np.asarray(c), dtype=dtype)[..., None] for c in confidences]
+    params = _Params(initial_layer(cameras, plates, confidences, lo, hi, cfg), dtype)
+    opt = _optimizer(params, cfg, size)
+    n = params.tensors["means"].shape[0]
+    grad_sum, seen = np.zeros(n), np.zeros(n)
+    engine.reserve_gaussians(max(cfg.max_gaussians, n) * 2)
+    empty3 = torch.zeros((0, 3), dtype=dtype)
+    channels = targets[0].shape[-1]
+    loss_value = float("nan")
+    with progress("static layer", cfg.iterations) as bar:
+        for it in range(1, cfg.iterations + 1):
+            v = int(torch.randint(len(cameras), (1,), generator=generator))
+            camera = cameras[v]
+            means, scales, quats, opacities, colors = params.gaussians()
+            image, _, _ = engine.render(camera, empty3, empty3, torch.zeros((0, 4), dtype=dtype),
+                                        torch.zeros(0, dtype=dtype), torch.zeros((0, channels), dtype=dtype),
+                                        params.background, static=engine.Gaussians(means, scales, quats, opacities,
+                                                                                   colors))
+            w, held = weights[v], image.detach()
+            loss = image_loss(w * image + (1 - w) * held, w * targets[v] + (1 - w) * held, cfg.w_l1, cfg.w_dssim)
+            opt.zero_grad()
+            loss.backward()
+            loss_value = float(loss.detach())
+            if not math.isfinite(loss_value):
+                raise FloatingPointError(f"static layer loss diverged at iteration {it}")
+            if it <= cfg.densify_until:
+                _accumulate(params, camera, grad_sum, seen)
+            opt.step()
+            if cfg.densify_from <= it <= cfg.densify_until and it % cfg.densify_every == 0 and it < cfg.iterations:
+                params = _densify(params, grad_sum, seen, cfg, size, generator)
+                opt = _optimizer(params, cfg, size)
+                n = params.tensors["means"].shape[0]
+                grad_sum, seen = np.zeros(n), np.zeros(n)
+            bar.status(loss=loss_value, gaussians=params.tensors["means"].shape[0])
+            bar.advance()
+    return params.layer({"loss": loss_value, "gaussians": int(params.tensors["means"].shape[0]),
+                         "config": cfg.to_dict(), "volume": [lo.tolist(), hi.tolist()]})
+
+
+def _accumulate(params: _Params, camera: Camera, grad_sum: np.ndarray, seen: np.ndarray) -> None:
+    """Add each Gaussian's screen-space position gradient in normalised device units (3DGS's densify statistic):
+    |dL/dx| projected to the image plane, times depth / fx for pixels, times W / 2 for NDC."""
+    means = params.tensors["means"]
+    if means.grad is None:
+        return
+    g = means.grad.detach().numpy().astype(np.float64)
+    cam = means.detach().numpy().astype(np.float64) @ camera.R.T + camera.t
+    g_cam = g @ camera.R.T
+    z = cam[:, 2]
+    visible = z > 1e-9
+    ndc = np.hypot(g_cam[:, 0], g_cam[:, 1]) * np.abs(z) / camera.K[0, 0] * 0.5 * camera.width
+    grad_sum[visible] += ndc[visible]
+    seen[visible & (np.abs(g).sum(axis=1) > 0)] += 1
+
+
+# ---- files ---------------------------------------------------------------------------------------------------------
+def save_static(run_dir: str | Path, layer: StaticLayer) -> Path:
+    """Write ``RUN/static.npz`` atomically; return its path."""
+    import json
+
+    dest = Path(run_dir) / STATIC_FILE
+    with atomic_file(dest) as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez_compressed(fh, format=np.array(FORMAT), means=layer.means, scales=layer.scales,
+                                quats=layer.quats, opacities=layer.opacities, colors=layer.colors,
+                                background=layer.background, info=np.array(json.dumps(layer.info)))
+    return dest
+
+
+def load_static(path: str | Path) -> StaticLayer:
+    """Read a static layer (``RUN/static.npz``, or the run folder); InputError naming the file when it is not one."""
+    import json
+
+    path = Path(path)
+    if path.is_dir():
+        path = path / STATIC_FILE
+    if not path.is_file():
+        raise InputError(path, None, "file not found (no static layer: the run's scene had no plates)")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            if str(data["format"]) != FORMAT:
+                raise InputError(path, "format", f"expected {FORMAT!r}, got {str(data['format'])!r}")
+            arrays = {k: np.asarray(data[k], np.float32) for k in
+                      ("means", "scales", "quats", "opacities", "colors", "background")}
+            info = json.loads(str(data["info"]))
+    except (KeyError, ValueError, OSError) as err:
+        raise InputError(path, None, f"not a static layer file ({err})") from None
+    n = len(arrays["means"])
+    shapes = {"means": (n, 3), "scales": (n, 3), "quats": (n, 4), "opacities": (n,)}
+    for key, shape in shapes.items():
+        if arrays[key].shape != shape:
+            raise InputError(path, key, f"expected shape {shape}, got {arrays[key].shape}")
+    if arrays["colors"].ndim != 2 or arrays["colors"].shape[0] != n or \
+            arrays["background"].shape != (arrays["colors"].shape[1],):
+        raise InputError(path, "colors", "colors must be [N, C] and background [C]")
+    return StaticLayer(**arrays, info=info)

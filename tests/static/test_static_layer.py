@@ -1,0 +1,121 @@
+"""The static layer fitted to four views' plates of a ray-cast scene (textured backdrop plane, red ball in the
+volume): a fifth, held-out camera gets its background, and the ball is found as an obstacle."""
+import numpy as np
+import pytest
+
+from .scenes import BALL_CENTER, BALL_RADIUS, HI, LO, camera, render
+
+TRAIN_AZIMUTHS = (-40, -15, 15, 40)
+HELD_OUT_AZIMUTH = 0
+HELD_OUT_PSNR_DB = 22.0  # measured 24-25 dB (docs/static-layer.md); a constant image of the mean colour: 15.3 dB
+ITERATIONS = 600
+
+
+@pytest.fixture(scope="module")
+def fitted(ti_engine):
+    from fluidnexus.static import StaticConfig, fit_static
+
+    cameras = [camera(a) for a in TRAIN_AZIMUTHS]
+    plates = [render(c) for c in cameras]
+    confidences = [np.ones(p.shape[:2], np.float32) for p in plates]
+    layer = fit_static(cameras, plates, confidences, LO, HI, StaticConfig(iterations=ITERATIONS, seed=3))
+    return cameras, plates, layer
+
+
+def test_held_out_camera_gets_its_background(fitted):
+    from fluidnexus.metrics import psnr
+    from fluidnexus.static import render_static
+
+    cameras, plates, layer = fitted
+    held = camera(HELD_OUT_AZIMUTH)
+    truth = render(held)
+    image = render_static(layer, held)[0].numpy()
+    constant = np.broadcast_to(truth.mean(axis=(0, 1)), truth.shape)
+    assert psnr(constant, truth) < 16.0  # the backdrop is textured: a flat guess scores low
+    assert psnr(image, truth) >= HELD_OUT_PSNR_DB
+    for cam, plate in zip(cameras, plates):
+        assert psnr(render_static(layer, cam)[0].numpy(), plate) >= 28.0
+
+
+def test_ball_is_found_as_an_obstacle(fitted):
+    from fluidnexus.engine.obstacle import GridObstacle, SphereObstacle
+    from fluidnexus.static import find_obstacles
+
+    cameras, _, layer = fitted
+    found = find_obstacles(layer, cameras, LO, HI)
+    assert found, "no obstacle found"
+    ball = found[0]
+    assert np.linalg.norm(np.asarray(ball.center) - BALL_CENTER) <= 0.1 * BALL_RADIUS
+    assert abs(ball.radius - BALL_RADIUS) <= 0.1 * BALL_RADIUS
+    assert ball.sphere_like()
+    assert isinstance(ball.engine_body(), SphereObstacle)
+    # the carved grid holds the ball (negative inside) and leaves the space in front of it free
+    grid = GridObstacle(ball.phi, ball.origin, ball.spacing)
+    front = BALL_CENTER + np.array([0.0, 0.0, 1.6 * BALL_RADIUS])
+    assert grid.distance(BALL_CENTER[None])[0] < 0 < grid.distance(front[None])[0]
+
+
+def test_declared_obstacle_wins(fitted, ti_engine):
+    from fluidnexus.engine.obstacle import SphereObstacle
+    from fluidnexus.static import find_obstacles, merge_with_declared
+
+    cameras, _, layer = fitted
+    found = find_obstacles(layer, cameras, LO, HI)
+    assert merge_with_declared(found, None) == found
+    assert merge_with_declared(found, SphereObstacle(BALL_CENTER, BALL_RADIUS)) == found[1:]
+    elsewhere = SphereObstacle((0.0, 0.1, 0.4), 0.05)
+    assert merge_with_declared(found, elsewhere)[0] is found[0]
+
+
+def test_saved_layer_loads_back_and_bad_files_are_refused(fitted, tmp_path):
+    from fluidnexus.errors import InputError
+    from fluidnexus.static import load_static, save_static
+
+    _, _, layer = fitted
+    path = save_static(tmp_path, layer)
+    back = load_static(tmp_path)
+    for key in ("means", "scales", "quats", "opacities", "colors", "background"):
+        np.testing.assert_array_equal(getattr(back, key), getattr(layer, key))
+    assert back.info["gaussians"] == len(layer)
+    (tmp_path / "junk.npz").write_bytes(b"not a file")
+    with pytest.raises(InputError):
+        load_static(tmp_path / "junk.npz")
+    with pytest.raises(InputError):
+        load_static(tmp_path / "missing")
+    assert path.name == "static.npz"
+
+
+def test_fit_is_deterministic(ti_engine):
+    from fluidnexus.static import StaticConfig, fit_static
+
+    cameras = [camera(a, size=24) for a in (-30, 30)]
+    plates = [render(c) for c in cameras]
+    confidences = [np.ones(p.shape[:2], np.float32) for p in plates]
+    cfg = StaticConfig(iterations=12, lattice=4, rays=6, depths=2, densify_from=4, densify_every=4,
+                       densify_until=8, seed=1)
+    a, b = (fit_static(cameras, plates, confidences, LO, HI, cfg) for _ in range(2))
+    np.testing.assert_array_equal(a.means, b.means)
+    np.testing.assert_array_equal(a.colors, b.colors)
+
+
+def test_confidence_weights_the_loss(ti_engine):
+    """A plate whose right half has confidence 0 pulls nothing there: the fit is the same whatever that half shows."""
+    from fluidnexus.static import StaticConfig, fit_static
+
+    cameras = [camera(a, size=24) for a in (-30, 30)]
+    plates = [render(c) for c in cameras]
+    confidences = [np.ones(p.shape[:2], np.float32) for p in plates]
+    for c in confidences:
+        c[:, 12:] = 0.0
+    garbage = [p.copy() for p in plates]
+    for g in garbage:
+        g[:, 12:] = np.random.default_rng(0).random(g[:, 12:].shape)
+    cfg = StaticConfig(iterations=8, lattice=4, rays=6, depths=2, densify_from=4, densify_every=4,
+                       densify_until=4, seed=1)
+    a = fit_static(cameras, plates, confidences, LO, HI, cfg)
+    b = fit_static(cameras, garbage, confidences, LO, HI, cfg)
+    np.testing.assert_array_equal(a.means, b.means)
+    np.testing.assert_array_equal(a.colors, b.colors)
+    confidences[0][:, 12:] = 1.0  # once that half counts, it changes the fit
+    c = fit_static(cameras, garbage, confidences, LO, HI, cfg)
+    assert not np.array_equal(a.colors, c.colors)
