@@ -31,9 +31,29 @@ def hull_grid(volume: Volume, voxel: float) -> list[np.ndarray]:
     return [np.arange(lo[a] + voxel / 2, hi[a], voxel) for a in range(3)]
 
 
+LUMA = (0.299, 0.587, 0.114)  # the gray of a colour, as fluidnexus.video reads gray footage
+
+
+def backdrop_value(color, channels: int) -> np.ndarray | None:
+    """A backdrop colour (3,) as the [channels] value of footage read with ``channels``; None stays None."""
+    if color is None:
+        return None
+    color = np.asarray(color, dtype=np.float32)
+    return np.array([float(np.dot(LUMA, color))], np.float32) if channels == 1 else color
+
+
+def smoke_mask(image: np.ndarray, threshold: float, backdrop=None) -> np.ndarray:
+    """[H, W] bool: pixels of ``image`` [H, W, C] that differ from the backdrop value [C] (black without one) by
+    more than ``threshold`` in some channel (smoke glows on black, darkens white)."""
+    if backdrop is None:
+        return image.max(axis=2) > threshold
+    return np.abs(image - np.asarray(backdrop, image.dtype)).max(axis=2) > threshold
+
+
 def visual_hull(cameras: tuple[Camera, ...], images: np.ndarray, volume: Volume, voxel: float,
-                threshold: float = 0.05) -> Hull:
-    """Voxel centres on a ``voxel``-metre grid over ``volume`` that every view sees, as smoke.
+                threshold: float = 0.05, backdrop=None) -> Hull:
+    """Voxel centres on a ``voxel``-metre grid over ``volume`` that every view sees, as smoke (``smoke_mask``
+    against ``backdrop``, a [C] value; black without one).
 
     The grid is tested in slabs of at most ``CHUNK_POINTS`` voxels (whole x-planes), so the memory needed is
     that of one slab plus the kept points, whatever the grid's size.
@@ -43,7 +63,7 @@ def visual_hull(cameras: tuple[Camera, ...], images: np.ndarray, volume: Volume,
         images: [V, H, W, C] one frame per view, in [0, 1].
     """
     xs, ys, zs = hull_grid(volume, voxel)
-    masks = [image.max(axis=2) > threshold for image in images]
+    masks = [smoke_mask(image, threshold, backdrop) for image in images]
     planes = max(1, CHUNK_POINTS // max(1, len(ys) * len(zs)))
     kept = [np.zeros((0, 3))]
     for i in range(0, len(xs), planes):

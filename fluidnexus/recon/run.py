@@ -88,7 +88,7 @@ def capacities(n_frames: int, setup: RunSetup, source: Source, n_visual: int) ->
 def locate_smoke(scene: Scene, obs, cfg: ReconConfig, obstacle=None) -> tuple[FoundSource, np.ndarray]:
     """The inflow (declared, or found in the first frames with smoke: ``source_finder``) and the visual seeds
     from the first frame's visual hull, none inside an obstacle."""
-    found = find_source(scene, obs, cfg.visual_spacing, 0.01 * cfg.length_scale, scene_source(scene))
+    found = find_source(scene, obs, cfg.visual_spacing, 0.01 * cfg.length_scale, scene_source(scene), obstacle)
     seeds = initial_visual(found.source, found.hull_points, cfg)
     if obstacle is not None and len(seeds):
         seeds = seeds[obstacle.distance(seeds) > 0]

@@ -6,8 +6,9 @@ from the first frames with smoke, across every usable view, through multi-view v
 
 1. The earliest frame t0 of the run's range whose hull holds smoke (at least ``MIN_POINTS`` voxels).
 2. The way the smoke moves: the hull of each of the next ``FOLLOW_FRAMES`` frames (on a grid ``FOLLOW_COARSENING``
-   times coarser, to keep the search cheap); the least-squares slope of the hull centroid over time gives the
-   direction. Buoyancy makes every plume drift up in the end, but over the first
+   times coarser, to keep the search cheap), and of further ones up to ``FOLLOW_MAX`` until the smoke has moved a
+   coarse voxel (slow smoke in a large volume, e.g. Sphere); the least-squares slope of the hull centroid over
+   time gives the direction. Buoyancy makes every plume drift up in the end, but over the first
    frames a jet moves the way it was blown. Without a measurable motion (less than one hull voxel over the frames)
    the direction is up.
 3. The position: the foot of the earliest smoke along that direction, i.e. the centre of the hull's slab of
@@ -16,7 +17,8 @@ from the first frames with smoke, across every usable view, through multi-view v
 4. The speed: the least-squares slope of the smoke front (98th-percentile extent along the direction) over the same
    frames, in m/s. The emission window starts at t0 when the smoke appears after the run's first frame.
 
-A declared source keeps its direction, radius, speed and window; its centre moves to the foot of the first frame's
+The hulls see smoke where a view differs from the scene's ``backdrop_color`` (black without one) and not inside an
+obstacle. A declared source keeps its direction, radius, speed and window; its centre moves to the foot of the first frame's
 hull along its direction when the frame has smoke (for an upward source: the centre of the hull's lowest slab, the
 behaviour of every earlier version). What was found, and how, is recorded in run.json (``source_finder``).
 """
@@ -28,10 +30,11 @@ import numpy as np
 
 from ..engine.emitter import UP, rotation_from_up
 from ..scene import Scene, Source
-from .hull import visual_hull
+from .hull import backdrop_value, visual_hull
 
 MIN_POINTS = 8
 FOLLOW_FRAMES = 8
+FOLLOW_MAX = 32
 FOLLOW_COARSENING = 2
 FOOT_PERCENTILE = 2.0
 FRONT_PERCENTILE = 98.0
@@ -77,7 +80,7 @@ def _slope(t: np.ndarray, y: np.ndarray) -> np.ndarray:
     return np.tensordot(tc, y - y.mean(axis=0), axes=1) / float(tc @ tc)
 
 
-def find_source(scene: Scene, obs, voxel: float, slab: float, fallback: Source) -> FoundSource:
+def find_source(scene: Scene, obs, voxel: float, slab: float, fallback: Source, obstacle=None) -> FoundSource:
     """The run's inflow: the scene's declared source (centre at the first frame's hull foot), or one found in the
     footage of ``obs`` (module docstring); ``fallback`` when the footage shows no smoke at all.
 
@@ -85,13 +88,17 @@ def find_source(scene: Scene, obs, voxel: float, slab: float, fallback: Source) 
         obs: the run's observations (``observations.Observations``).
         voxel: hull voxel size, metres.
         slab: thickness of the foot slab, metres.
+        obstacle: an engine body (or None); hull voxels inside it are not smoke.
     """
     first = obs.first
     if scene.volume is None:
         return FoundSource(fallback, np.zeros((0, 3)), {"method": "no volume: the scene's source or its default"})
 
+    backdrop = backdrop_value(scene.backdrop_color, obs.images.shape[-1])
+
     def hull(t: int, coarsening: int = 1) -> np.ndarray:
-        return visual_hull(obs.cameras, obs.frame(t), scene.volume, voxel * coarsening).points
+        points = visual_hull(obs.cameras, obs.frame(t), scene.volume, voxel * coarsening, backdrop=backdrop).points
+        return points if obstacle is None or not len(points) else points[obstacle.distance(points) > 0]
 
     seeds = hull(first)
     if scene.source is not None:
@@ -111,21 +118,24 @@ def find_source(scene: Scene, obs, voxel: float, slab: float, fallback: Source) 
                                              "source": fallback.to_dict()})
     coarse = voxel * FOLLOW_COARSENING
     times, hulls = [], []
-    for t in range(t0, min(last, t0 + 1 + FOLLOW_FRAMES)):
+    velocity, moved = np.zeros(3), 0.0
+    for t in range(t0, min(last, t0 + 1 + FOLLOW_MAX)):
         h = hull(t, FOLLOW_COARSENING)
         if len(h) >= MIN_POINTS:
             times.append(t)
             hulls.append(h)
-    direction, speed, moved = UP, 0.0, 0.0
-    if len(times) >= 2:
-        t = np.asarray(times, dtype=np.float64)
-        velocity = _slope(t, np.stack([h.mean(axis=0) for h in hulls]))  # m per frame
-        moved = float(np.linalg.norm(velocity) * (t[-1] - t[0]))
-        if moved >= coarse:
-            direction = tuple(float(v) for v in velocity / np.linalg.norm(velocity))
-            d = np.asarray(direction)
-            front = np.array([np.percentile(h @ d, FRONT_PERCENTILE) for h in hulls])
-            speed = float(max(0.0, _slope(t, front)) * scene.fps)
+        if len(times) >= 2:
+            tt = np.asarray(times, dtype=np.float64)
+            velocity = _slope(tt, np.stack([p.mean(axis=0) for p in hulls]))  # m per frame
+            moved = float(np.linalg.norm(velocity) * (tt[-1] - tt[0]))
+        if t - t0 >= FOLLOW_FRAMES and moved >= coarse:
+            break
+    direction, speed = UP, 0.0
+    if moved >= coarse:
+        direction = tuple(float(v) for v in velocity / np.linalg.norm(velocity))
+        d = np.asarray(direction)
+        front = np.array([np.percentile(h @ d, FRONT_PERCENTILE) for h in hulls])
+        speed = float(max(0.0, _slope(np.asarray(times, dtype=np.float64), front)) * scene.fps)
     center, base = foot(h0, direction, slab)
     radius = foot_radius(base, center, direction, voxel)
     source = Source(tuple(float(v) for v in center), radius, direction, speed, None if t0 == first else (t0, None))
