@@ -92,7 +92,7 @@ def _measured(args) -> tuple[int, str]:
 @pytest.mark.slow
 @pytest.mark.parametrize("protocol, settings", [
     ("four-view", TINY),
-    ("single-view", [*TINY[:2], "0:4", "--resolution", "0.5", *TINY[4:]]),
+    ("single-view", ["--frames", "0:4", "--resolution", "0.5", *TINY[4:]]),
 ])
 def test_estimate_within_a_factor_of_the_measured_peak(protocol, settings, tmp_path):
     scene = tmp_path / "s"
