@@ -13,7 +13,7 @@ The fit is a small 3D Gaussian splatting optimisation (Kerbl et al. 2023):
   share held fixed), so a pixel of confidence 0 (smoke that never left) pulls nothing and what the plate shows
   there does not matter, not even inside SSIM's windows.
 - **Densify and prune** every ``densify_every`` iterations until ``densify_until``: Gaussians whose mean
-  screen-space position gradient exceeds ``grad_threshold`` (in normalised device units, 3DGS's 2e-4) are cloned
+  screen-space position gradient exceeds ``grad_threshold`` (in normalised device units, 3DGS uses 2e-4 over 30k iterations; a short fit on few views overfits with it) are cloned
   when small (largest scale under ``percent_dense`` of the volume's size) and split in two when large; Gaussians
   with opacity under ``min_opacity`` or larger than ``max_scale`` of the volume's size are removed.
 
@@ -47,7 +47,7 @@ FORMAT = "fluidnexus-static/1"
 class StaticConfig:
     """Settings of a static-layer fit. Lengths are fractions of the volume's size (cube root of its volume)."""
 
-    iterations: int = 600
+    iterations: int = 400
     lattice: int = 6  # Gaussians per axis of the volume lattice
     rays: int = 32  # rays per image side per view
     depths: int = 48  # candidate depths per ray of the plane sweep, from the volume's near side to the shell
@@ -60,8 +60,8 @@ class StaticConfig:
     lr_color: float = 0.02
     densify_every: int = 100
     densify_from: int = 100
-    densify_until: int = 450
-    grad_threshold: float = 2e-4
+    densify_until: int = 300
+    grad_threshold: float = 6e-4
     percent_dense: float = 0.01
     min_opacity: float = 0.005
     max_scale: float = 0.5

@@ -29,7 +29,7 @@ from .layer import StaticLayer, render_static
 @dataclass(frozen=True)
 class FinderConfig:
     resolution: int = 48  # voxels along the volume's size (cube root of its volume)
-    opaque: float = 0.5
+    opaque: float = 0.95
     tolerance: float = 1.5  # voxels
     min_points: int = 30
     sphere_rms: float = 0.05
