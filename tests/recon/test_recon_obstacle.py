@@ -6,7 +6,7 @@ import numpy as np
 
 from fluidnexus.state import load_frame
 
-from .conftest import invoke, ok
+from .conftest import ok
 
 CENTER, RADIUS = (0.34, 0.09, -0.23), 0.035  # in the sample's plume, a few centimetres above its inflow
 FAST = ["--resolution", "0.25", "--init-iters", "2", "--dynamics-iters", "1", "--appearance-iters", "1",
