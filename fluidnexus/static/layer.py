@@ -3,17 +3,21 @@ plates with the project's splat renderer (issue 16, part 3; docs/static-layer.md
 
 The fit is a small 3D Gaussian splatting optimisation (Kerbl et al. 2023):
 
-- **Initialisation**, sized by the scene's volume: a lattice of faint Gaussians filling the volume, and for each
+- **Initialisation**, sized by the scene's volume: a lattice of faint Gaussians filling the volume (coloured by
+  the mean of the plates where the views see each node), and for each
   camera a grid of rays through its image, each seeding one Gaussian where the views agree best along it (a plane
   sweep over depths from the volume's near side out to a shell ``shell`` half-diagonals of the volume from its
   centre: the depth of least colour variance across the plates that see it), with the plates' mean colour there.
+  A ray or lattice node showing the plates' median colour (within ``plain``) seeds nothing: a plain colour has no depth, and the
+  learned background colour already shows it (a white backdrop is not filled with white Gaussians).
   What lies beyond every Gaussian is one learned colour (initialised to the plates' median).
 - **Loss** per view: ``0.8 L1 + 0.2 (1 - SSIM)`` (the reconstruction's image loss) weighted by the plate's
   confidence w: the target is ``w plate + (1 - w) render`` and the render's gradient is scaled by w (the render's
   share held fixed), so a pixel of confidence 0 (smoke that never left) pulls nothing and what the plate shows
   there does not matter, not even inside SSIM's windows.
 - **Densify and prune** every ``densify_every`` iterations until ``densify_until``: Gaussians whose mean
-  screen-space position gradient exceeds ``grad_threshold`` (in normalised device units, 3DGS uses 2e-4 over 30k iterations; a short fit on few views overfits with it) are cloned
+  screen-space position gradient exceeds ``grad_threshold`` (normalised device units; 3DGS uses 2e-4 over 30k
+  iterations, with which a short fit on few views overfits) are cloned
   when small (largest scale under ``percent_dense`` of the volume's size) and split in two when large; Gaussians
   with opacity under ``min_opacity`` or larger than ``max_scale`` of the volume's size are removed.
 
@@ -52,6 +56,7 @@ class StaticConfig:
     rays: int = 32  # rays per image side per view
     depths: int = 48  # candidate depths per ray of the plane sweep, from the volume's near side to the shell
     shell: float = 2.0  # the outermost seeds lie this many half-diagonals from the volume's centre
+    plain: float = 0.03  # rays whose colour is within this of the plates' median colour seed nothing
     initial_opacity: float = 0.1
     lr_position: float = 2e-3  # x the volume's size per step
     lr_scale: float = 0.01
@@ -152,7 +157,23 @@ def _ray_seeds(index: int, cameras, plates, confidences, fill: np.ndarray, lo: n
     colors[alone] = plate[np.clip(uv[alone, 1].astype(int), 0, h - 1), np.clip(uv[alone, 0].astype(int), 0, w - 1)]
     pix = np.clip(uv.astype(int), 0, [w - 1, h - 1])
     colors[confidence[pix[:, 1], pix[:, 0]] < 0.5] = fill
-    return points, colors
+    # a plain colour has no depth (every depth agrees): what shows the background colour is left to it
+    content = np.abs(colors - fill).max(axis=1) > cfg.plain
+    return points[content], colors[content]
+
+
+def _mean_color(points: np.ndarray, cameras, plates, confidences, fill: np.ndarray) -> np.ndarray:
+    """[K, C] mean of the plates' confident colours where the views see ``points`` [K, 3] (``fill`` where none)."""
+    total = np.zeros((len(points), plates[0].shape[-1]))
+    count = np.zeros(len(points))
+    for cam, img, conf in zip(cameras, plates, confidences):
+        px, z = cam.project(points)
+        col, row = np.floor(px[:, 0]).astype(int), np.floor(px[:, 1]).astype(int)
+        ok = (z > 0) & (col >= 0) & (col < cam.width) & (row >= 0) & (row < cam.height)
+        ok[ok] &= conf[row[ok], col[ok]] >= 0.5
+        total[ok] += img[row[ok], col[ok]]
+        count += ok
+    return np.where(count[:, None] > 0, total / np.maximum(count, 1)[:, None], fill)
 
 
 def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig) -> StaticLayer:
@@ -167,7 +188,10 @@ def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig) -> St
     if len(sure) == 0:
         raise InputError(None, "backgrounds", "every plate pixel has confidence under 0.5: nothing to fit")
     median = np.median(sure, axis=0)
-    points, colors = [lattice], [np.tile(median, (len(lattice), 1))]
+    lattice_colors = _mean_color(lattice, cameras, plates, confidences, median)
+    plain = np.abs(lattice_colors - median).max(axis=1) <= cfg.plain
+    lattice, lattice_colors = lattice[~plain], lattice_colors[~plain]
+    points, colors = [lattice], [lattice_colors]
     for index in range(len(cameras)):
         p, c = _ray_seeds(index, cameras, plates, confidences, median, lo, hi, cfg, generator)
         points.append(p)
@@ -176,8 +200,8 @@ def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig) -> St
     # each seed as wide as its spacing: the lattice's inside the volume, a ray seed's the pixel footprint there
     spacing = np.full(len(means), size / cfg.lattice)
     offset = len(lattice)
-    for camera in cameras:
-        n = cfg.rays * cfg.rays
+    for camera, p in zip(cameras, points[1:]):
+        n = len(p)
         _, z = camera.project(means[offset:offset + n])
         spacing[offset:offset + n] = np.abs(z) * camera.width / cfg.rays / camera.K[0, 0]
         offset += n

@@ -2,7 +2,8 @@
 (issue 16, part 4; docs/static-layer.md).
 
 1. **Surfaces**: each view renders the static layer (``layer.render_static``) with its depth; pixels whose alpha
-   is at least ``opaque`` give a surface point at the expected depth (depth / alpha).
+   is at least ``opaque`` and whose colour differs from the layer's background colour by more than ``plain`` give
+   a surface point at the expected depth (depth / alpha).
 2. **Carving** (space carving by depth): a voxel of a grid over the volume is free when some view sees past it:
    its pixel shows the layer's background colour (alpha under ``opaque``), or the surface there lies more than
    ``tolerance`` voxels behind the voxel. What no view sees past, and at least one view sees, is occupied.
@@ -30,9 +31,10 @@ from .layer import StaticLayer, render_static
 class FinderConfig:
     resolution: int = 48  # voxels along the volume's size (cube root of its volume)
     opaque: float = 0.95
+    plain: float = 0.03  # a pixel within this of the background colour shows nothing
     tolerance: float = 1.5  # voxels
     min_points: int = 30
-    sphere_rms: float = 0.05
+    sphere_rms: float = 0.08
 
 
 @dataclass(frozen=True, eq=False)
@@ -94,14 +96,18 @@ def fit_sphere(points: np.ndarray, rounds: int = 5) -> tuple[np.ndarray, float, 
     return center, radius, rms
 
 
-def surface_points(layer: StaticLayer, cameras, opaque: float = FinderConfig.opaque):
+def surface_points(layer: StaticLayer, cameras, opaque: float = FinderConfig.opaque,
+                   plain: float = FinderConfig.plain):
     """Per view: (alpha [H, W], expected depth [H, W] (inf where not opaque), world points [K, 3] of the opaque
-    pixels)."""
+    pixels). A pixel is opaque when its alpha is at least ``opaque`` and its colour differs from the layer's
+    background colour by more than ``plain``."""
     out = []
     for camera in cameras:
-        _, alpha, depth = render_static(layer, camera, return_depth=True)
+        image, alpha, depth = render_static(layer, camera, return_depth=True)
         alpha, depth = alpha.double().numpy(), depth.double().numpy()
-        solid = alpha >= opaque
+        # Gaussians that show the background colour are indistinguishable from none (e.g. over a white backdrop)
+        shown = np.abs(image.double().numpy() - layer.background).max(axis=-1) > plain
+        solid = (alpha >= opaque) & shown
         z = np.where(solid, depth / np.maximum(alpha, 1e-12), np.inf)
         rows, cols = np.nonzero(solid)
         uv = np.stack([cols + 0.5, rows + 0.5], axis=1)
@@ -121,7 +127,7 @@ def find_obstacles(layer: StaticLayer, cameras, lo, hi, cfg: FinderConfig = Find
     centers = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
     carved = np.zeros(len(centers), bool)
     seen = np.zeros(len(centers), bool)
-    views = surface_points(layer, cameras, cfg.opaque)
+    views = surface_points(layer, cameras, cfg.opaque, cfg.plain)
     for camera, (_, z, _) in zip(cameras, views):
         uv, depth = camera.project(centers)
         col, row = np.floor(uv[:, 0]).astype(int), np.floor(uv[:, 1]).astype(int)
