@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import click
 
-from fluidnexus import engine
 from fluidnexus.errors import InputError
 
 arch_option = click.option("--arch", type=click.Choice(["auto", "cpu", "cuda"]), default="auto", show_default=True,
@@ -19,7 +18,10 @@ def start_engine(arch: str) -> str:
     """Resolve ``--arch`` and start the engine (float32); returns the arch used.
 
     An engine already running on that arch in this process (e.g. under the test suite) is used as it is.
+    The engine (taichi, torch) is imported here, so that importing a command stays light.
     """
+    from fluidnexus import engine
+
     resolved = engine.resolve_arch(arch)
     try:
         if engine.is_running(resolved):
