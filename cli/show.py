@@ -40,6 +40,27 @@ def _cameras(run, scene, which: str):
     return out
 
 
+def _backgrounds(choice: str, run):
+    """(camera, view name or None) -> ``Behind`` for ``--background``; a FILE is read (and refused) at once."""
+    import numpy as np
+
+    from fluidnexus.backdrop import Behind, resize_image, run_backdrop, to_channels
+
+    if choice == "plates":
+        backdrop = run_backdrop(run)
+        return lambda camera, view: backdrop.behind(camera, view)
+    if choice == "black":
+        return lambda camera, view: Behind(np.zeros(run.channels, np.float32))
+    from fluidnexus.background.store import read_image
+
+    try:
+        image = to_channels(read_image(choice), run.channels)
+    except InputError as err:
+        raise InputError(err.path, "--background", f"{err.message} (expected black, plates or an image file)") \
+            from None
+    return lambda camera, view: Behind(resize_image(image, camera.width, camera.height))
+
+
 @click.command()
 @click.argument("run_dir", type=click.Path(path_type=Path))
 @click.option("--out", required=True, type=click.Path(path_type=Path, file_okay=False))
@@ -48,8 +69,14 @@ def _cameras(run, scene, which: str):
 @click.option("--orbit", type=int, default=0, help="Also write orbit.mp4: N frames, one turn around the volume.")
 @click.option("--compare", is_flag=True, help="Put the real ground-truth video beside the render.")
 @click.option("--png", is_flag=True, help="Also write PNG frames.")
+@click.option("--background", "background", default="plates", show_default=True,
+              help="What the smoke is composited over: 'plates' (what each camera saw behind the smoke: its clean "
+                   "plate or the run's static layer, else the scene's backdrop colour or black), 'black', or an "
+                   "image FILE (resized to each camera).")
+@click.option("--alpha", "with_alpha", is_flag=True, help="Also write the smoke's alpha matte (NAME_alpha.mp4).")
 @arch_option
-def render(run_dir: Path, out: Path, which: str, orbit: int, compare: bool, png: bool, arch: str) -> None:
+def render(run_dir: Path, out: Path, which: str, orbit: int, compare: bool, png: bool, background: str,
+           with_alpha: bool, arch: str) -> None:
     """Write MP4 videos of a run from the scene's cameras or an orbit around the volume."""
     from fluidnexus.frames import orbit_cameras, render_state, side_by_side
     from fluidnexus.progress import track
@@ -60,13 +87,18 @@ def render(run_dir: Path, out: Path, which: str, orbit: int, compare: bool, png:
     scene = run.scene(check_videos=False)
     if orbit < 0:
         raise InputError(None, "--orbit", f"must be >= 0, got {orbit}")
+    behind_of = _backgrounds(background, run)
     start_engine(arch)
     frames = run.frames
     states = [run.state(t) for t in frames]
     for name, camera_at, truth in track(_cameras(run, scene, "ground-truth" if compare and which == "all" else which),
                                         "render"):
-        video = [render_state(s, camera_at(t)) for s, t in zip(states, frames)]
         cam = camera_at(frames[0])
+        behind = behind_of(cam, name)
+        video = [render_state(s, camera_at(t), behind) for s, t in zip(states, frames)]
+        if with_alpha:
+            write_video(out / f"{name}_alpha.mp4", [render_state(s, camera_at(t), matte=True)
+                                                    for s, t in zip(states, frames)], fps=scene.fps)
         if compare:
             if truth is None:
                 raise InputError(scene.root / "scene.json", "--compare", f"view {name!r} has no ground-truth video")
@@ -83,7 +115,8 @@ def render(run_dir: Path, out: Path, which: str, orbit: int, compare: bool, png:
             raise InputError(scene.root / "scene.json", "volume", "--orbit needs the scene's volume")
         cams = orbit_cameras(scene.volume, scene.views[0].camera.scaled(run.resolution), orbit)
         picks = [states[round(k * (len(states) - 1) / max(1, orbit - 1))] for k in range(orbit)]
-        write_video(out / "orbit.mp4", [render_state(s, c) for s, c in zip(picks, cams)], fps=scene.fps)
+        write_video(out / "orbit.mp4", [render_state(s, c, behind_of(c, None)) for s, c in zip(picks, cams)],
+                    fps=scene.fps)
         log.info("wrote %s", out / "orbit.mp4")
 
 

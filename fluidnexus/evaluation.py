@@ -22,6 +22,7 @@ import torch
 
 from . import engine
 from .engine.tensors import torch_dtype
+from .backdrop import run_backdrop
 from .errors import InputError
 from .frames import render_state
 from .metrics import psnr, ssim
@@ -119,6 +120,7 @@ def prediction(run: Run, lpips_weights=None) -> dict:
                                                           f"({scene.frame_count} frames)")
     inputs = [v for v in scene.with_role("input") if v.video is not None]
     states = [run.state(t) for t in frames]
+    backdrop = run_backdrop(run)
 
     def real(video, cam, rows):
         clip = read_video(scene.root / video, frames=slice(min(rows), max(rows) + 1), size=(cam.width, cam.height),
@@ -129,13 +131,15 @@ def prediction(run: Run, lpips_weights=None) -> dict:
     for view in inputs:
         cam = view.camera.scaled(run.resolution)
         truth = real(view.video, cam, frames)
-        input_scores[view.name] = _score([render_state(s, cam) for s in states], truth, lpips_weights)
+        behind = backdrop.behind(cam, view.name)
+        input_scores[view.name] = _score([render_state(s, cam, behind) for s in states], truth, lpips_weights)
         last = real(view.video, cam, [start])[0]
         repeat_scores[view.name] = _score([last] * len(frames), truth, lpips_weights)
     novel = {}
     for gt in load_ground_truth(scene.root):
         cam = gt.camera.scaled(run.resolution)
-        rendered = [render_state(s, gt.camera_at(t).scaled(run.resolution)) for s, t in zip(states, frames)]
+        behind = backdrop.behind(cam)
+        rendered = [render_state(s, gt.camera_at(t).scaled(run.resolution), behind) for s, t in zip(states, frames)]
         novel[gt.name] = _score(rendered, real(gt.video, cam, frames), lpips_weights)
 
     def summary(scores: dict) -> dict:
@@ -154,6 +158,7 @@ def evaluate(run: Run, lpips_weights=None) -> dict:
         raise InputError(scene.root / "scene.json", "ground_truth", "the scene has no ground-truth view to score")
     frames = run.frames
     resim = resimulate(run, frames)
+    backdrop = run_backdrop(run)
     per_view, resim_scores = {}, {}
     with progress("evaluate", len(truths)) as bar:
         for gt in truths:
@@ -162,9 +167,11 @@ def evaluate(run: Run, lpips_weights=None) -> dict:
                                size=(cam.width, cam.height), channels=run.channels)
             truth = video[[t - frames[0] for t in frames]]
             cams = [gt.camera_at(t).scaled(run.resolution) for t in frames]  # a moving camera: one per frame
-            per_view[gt.name] = _score([render_state(run.state(t), c) for t, c in zip(frames, cams)], truth,
+            behind = backdrop.behind(cams[0])  # a held-out camera: the static layer, the backdrop colour or black
+            per_view[gt.name] = _score([render_state(run.state(t), c, behind) for t, c in zip(frames, cams)], truth,
                                        lpips_weights)
-            resim_scores[gt.name] = _score([render_state(s, c) for s, c in zip(resim, cams)], truth, lpips_weights)
+            resim_scores[gt.name] = _score([render_state(s, c, behind) for s, c in zip(resim, cams)], truth,
+                                           lpips_weights)
             bar.advance()
     mean = {k: _mean(getattr(s, k) for s in per_view.values()) for k in ("psnr", "ssim", "lpips")}
     resim_mean = {k: _mean(getattr(s, k) for s in resim_scores.values()) for k in ("psnr", "ssim", "lpips")}

@@ -8,22 +8,28 @@ import torch
 
 from . import engine
 from .engine.tensors import torch_dtype
+from .backdrop import Behind
 from .camera import Camera
 from .scene import Volume
 from .state import FrameState
 
 
-def render_state(state: FrameState, camera: Camera) -> np.ndarray:
-    """The visual particles of ``state`` seen by ``camera``: float32 [H, W, C] in [0, 1] (black background)."""
+def render_state(state: FrameState, camera: Camera, behind: Behind | None = None, matte: bool = False):
+    """The visual particles of ``state`` seen by ``camera``: float32 [H, W, C] in [0, 1], composited with
+    ``behind`` (``fluidnexus.backdrop``: a background and static Gaussians; black without it). With ``matte``,
+    the smoke's own alpha [H, W, 1] instead (the static Gaussians and the background left out)."""
     dtype = torch_dtype()
+    extra = {} if behind is None or matte else behind.render_args(dtype)
 
     def t(a):
         return torch.as_tensor(np.asarray(a), dtype=dtype)
 
     with torch.no_grad():
-        image, _, _ = engine.render(camera, t(state.visual_positions), t(state.visual_scales),
-                                    t(state.visual_rotations), t(state.visual_opacities), t(state.visual_colors))
-    return image.clamp(0, 1).numpy().astype(np.float32)
+        image, alpha, _ = engine.render(camera, t(state.visual_positions), t(state.visual_scales),
+                                        t(state.visual_rotations), t(state.visual_opacities), t(state.visual_colors),
+                                        **extra)
+    out = alpha[..., None] if matte else image
+    return out.clamp(0, 1).numpy().astype(np.float32)
 
 
 def orbit_cameras(volume: Volume, like: Camera, count: int, elevation_deg: float = 10.0) -> list[Camera]:

@@ -18,6 +18,7 @@ import torch
 
 from ..engine import ModelConfig
 from ..engine.tensors import torch_dtype
+from ..backdrop import run_backdrop
 from ..frames import render_state
 from ..metrics import psnr
 from ..progress import progress
@@ -85,26 +86,30 @@ def calibrate(run: Run, ctx: RunContext, first: int, window: int = DEFAULT_WINDO
     truth = [read_video(scene.root / v.video, frames=slice(begin + 1, first + 1), size=(c.width, c.height),
                         channels=run.channels) for v, c in zip(views, cameras)]
     start = Smoke.from_state(run.state(begin), torch_dtype())
-    model, candidates = search(start, cameras, truth, ctx)
+    backdrop = run_backdrop(run)
+    model, candidates = search(start, cameras, truth, ctx, [backdrop.behind(c, v.name) for v, c in zip(views, cameras)])
     return Calibration(model, (begin + 1, first), tuple(v.name for v in views), candidates)
 
 
-def search(start: Smoke, cameras: list, truth: list[np.ndarray], ctx: RunContext) -> tuple[ModelConfig, tuple]:
+def search(start: Smoke, cameras: list, truth: list[np.ndarray], ctx: RunContext,
+           behind: list | None = None) -> tuple[ModelConfig, tuple]:
     """The coordinate search: (best model, candidates {"alpha", "k", "psnr"}).
 
     Args:
         start: the state the backtest starts from.
         cameras: [V] cameras; truth: [V] arrays [T, H, W, C] of the T frames after ``start`` seen by them.
+        behind: [V] what each camera sees behind the smoke (``fluidnexus.backdrop``; black without it).
     """
+    behind = behind or [None] * len(cameras)
     window = truth[0].shape[0]
     ws = workspace_for(start, window, ctx, ctx.model)
 
     def score(alpha: float, k: float) -> float:
         model = with_buoyancy_drag(ctx.model, alpha, k)
         ws.model, ws.theta = model, torch.tensor(model.to_vector(), dtype=ws.dtype)
-        values = [psnr(render_state(s.to_state(), cam), video[i])
+        values = [psnr(render_state(s.to_state(), cam, b), video[i])
                   for i, s in enumerate(rollout(start, window, ws, replace(ctx, model=model)))
-                  for cam, video in zip(cameras, truth)]
+                  for cam, video, b in zip(cameras, truth, behind)]
         return float(np.mean(values))
 
     alpha0, k0 = ctx.model.term("buoyancy").alpha, ctx.model.term("drag").k

@@ -13,6 +13,7 @@ from typing import Iterator
 import numpy as np
 import torch
 
+from ..backdrop import Behind
 from ..camera import Camera
 from ..frames import render_state
 from ..obstacles import join
@@ -24,13 +25,17 @@ from ..recon.workspace import Workspace
 from .rollout import RunContext, constant_appearance, inflow_look
 
 
-def rough_videos(states: list[Smoke], cameras: list[Camera], ctx: RunContext, constant: bool) -> np.ndarray:
+def rough_videos(states: list[Smoke], cameras: list[Camera], ctx: RunContext, constant: bool,
+                 behind: list[Behind] | None = None) -> np.ndarray:
     """[V, T, H, W, C] float32: each rollout frame seen by each camera, with the constant initial appearance
-    (``constant``, for a generative refiner) or with the appearance the rollout carries."""
+    (``constant``, for a generative refiner) or with the appearance the rollout carries, composited with what
+    each camera sees behind the smoke (``behind`` [V], ``fluidnexus.backdrop``; black without it)."""
     def look(s: Smoke) -> Smoke:
         return constant_appearance(s, ctx.config) if constant else s
 
-    return np.stack([np.stack([render_state(look(s).to_state(), cam) for s in states]) for cam in cameras])
+    behind = behind or [None] * len(cameras)
+    return np.stack([np.stack([render_state(look(s).to_state(), cam, b) for s in states])
+                     for cam, b in zip(cameras, behind)])
 
 
 def refine_videos(rough: np.ndarray, refiner) -> np.ndarray:
@@ -39,8 +44,9 @@ def refine_videos(rough: np.ndarray, refiner) -> np.ndarray:
 
 
 def refit(start: Smoke, videos: np.ndarray, cameras: list[Camera], ws: Workspace, ctx: RunContext,
-          obstacle=None) -> Iterator[Smoke]:
-    """Yield the re-fitted frames start.frame + 1 ... against ``videos`` [V, T, H, W, C] (one per camera).
+          obstacle=None, behind: list[Behind] | None = None) -> Iterator[Smoke]:
+    """Yield the re-fitted frames start.frame + 1 ... against ``videos`` [V, T, H, W, C] (one per camera, each
+    composited with its entry of ``behind``, as ``rough_videos``).
 
     Stage 1 starts every frame from Sim(u_{t-1}, p_{t-1}) of the re-fitted previous frame (with the workspace's
     wind, and the scene's obstacles plus ``obstacle``); with an obstacle the look-ahead term is off (a step with an
@@ -51,10 +57,11 @@ def refit(start: Smoke, videos: np.ndarray, cameras: list[Camera], ws: Workspace
     ws.set_obstacle(obstacle)
     prev, look = start, inflow_look(start, ctx)
     frames = videos.shape[1]
+    args = tuple({} if b is None else b.render_args(ws.dtype) for b in (behind or [None] * len(cameras)))
     with progress("re-fit", frames) as bar:
         for k in range(frames):
             t = prev.frame + 1
-            views = Views(tuple(cameras), torch.as_tensor(videos[:, k], dtype=ws.dtype))
+            views = Views(tuple(cameras), torch.as_tensor(videos[:, k], dtype=ws.dtype), args)
             prev = replace(prev)  # emit appends to its argument; the caller's start stays as it is
             emit(prev, ctx.source, cfg, t, look)
             dyn = fit_dynamics(prev, ws, views, cfg, frame_generator(cfg.seed, t), bar)

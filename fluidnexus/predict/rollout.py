@@ -16,7 +16,7 @@ import torch
 from .. import engine
 from ..engine import ModelConfig, SolverConfig, Wind
 from ..errors import InputError
-from ..obstacles import engine_obstacle, join
+from ..obstacles import join
 from ..recon.config import ReconConfig
 from ..recon.initial import emit, physical_source, visual_source
 from ..recon.smoke import Smoke
@@ -40,13 +40,15 @@ class RunContext:
 
     @classmethod
     def of(cls, run: Run) -> "RunContext":
-        """The run's context; the scene's obstacles become engine bodies (the engine must be started)."""
+        """The run's context; the scene's obstacles (declared, and found in its static layer) become engine
+        bodies (the engine must be started)."""
+        from ..recon.scenery import run_scenery
+
         cfg = run.config
         src = run.info.get("source") or _summary_source(run)
-        scene = run.scene(check_videos=False)
         return cls(ReconConfig.from_dict(cfg["recon"], run.root / "config.json"), SolverConfig.from_dict(cfg["solver"]),
                    ModelConfig.from_dict(cfg["model"]), Source.from_dict(src, run.root / "run.json"),
-                   engine_obstacle(scene.obstacles, scene.root, scene.volume))
+                   run_scenery(run).obstacle)
 
 
 def _summary_source(run: Run) -> dict:

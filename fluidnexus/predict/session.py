@@ -16,6 +16,7 @@ import numpy as np
 
 from .. import memory
 from ..atomic import write_json
+from ..backdrop import run_backdrop
 from ..camera import Camera
 from ..engine.tensors import torch_dtype
 from ..errors import InputError, RunError
@@ -120,7 +121,9 @@ def simulate_future(run: Run, out: Path, kind: str, frames: int, interaction: In
     saved = physics
     if refiner is not None:
         names, cameras = zip(*scene_cameras(run))
-        rough = rough_videos([start] + physics, cameras, ctx, constant=refiner.generative)
+        backdrop = run_backdrop(run)
+        behind = [backdrop.behind(cam, name) for name, cam in zip(names, cameras)]
+        rough = rough_videos([start] + physics, cameras, ctx, constant=refiner.generative, behind=behind)
         if anchor:
             known = known_frames(run.scene(check_videos=False), first, list(names), run.resolution, run.channels)
             guide = anchor_videos(rough, physics, start, cameras, known)
@@ -131,7 +134,7 @@ def simulate_future(run: Run, out: Path, kind: str, frames: int, interaction: In
         for name, r, f in zip(names, rough[:, 1:], refined):
             write_video(out / "videos" / f"rough_{name}.mp4", r, fps=fps)
             write_video(out / "videos" / f"refined_{name}.mp4", f, fps=fps)
-        saved = list(refit(start, refined, cameras, ws, ctx, interaction.obstacle))
+        saved = list(refit(start, refined, cameras, ws, ctx, interaction.obstacle, behind))
     for smoke in saved:
         _save(out, smoke)
     elapsed = time.perf_counter() - tic

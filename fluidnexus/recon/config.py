@@ -57,6 +57,8 @@ class ReconConfig:
         physical_emit_spacing, physical_emit_radius: physical emitter lattice spacing and disk radius, metres.
         init_visual_height: height of the frame-0 visual cylinder above the source, metres.
         stabilization_steps: N_stable steps before frame 0.
+        static_iters: iterations of the static-layer fit at the start of a run on a scene with clean plates
+            (``fluidnexus.static``, docs/static-layer.md).
         length_scale: the scene's length-scale factor the lengths were derived with (1 on ScalarFlow); it also
             scales the loss unit (``loss_unit``) and the fixed offsets of the initialisation.
         max_loss: a loss above this (or NaN) stops the run (divergence). The visual spacing term is a sum over
@@ -101,6 +103,7 @@ class ReconConfig:
     physical_emit_radius: float = 0.09
     init_visual_height: float = 0.05
     stabilization_steps: int = 20
+    static_iters: int = 400
     length_scale: float = 1.0
     max_loss: float = 1e6
 
@@ -110,6 +113,7 @@ class ReconConfig:
             "views_per_iter": self.views_per_iter >= 1, "anisotropy_cap": self.anisotropy_cap >= 1,
             "init_iters": self.init_iters >= 0, "dynamics_iters": self.dynamics_iters >= 0,
             "appearance_iters": self.appearance_iters >= 0, "stabilization_steps": self.stabilization_steps >= 0,
+            "static_iters": self.static_iters >= 0,
             "frames": self.frames[0] >= 0 and (self.frames[1] is None or self.frames[1] > self.frames[0]),
         }
         for name in ("lr_position", "visual_sigma", "scale0", "visual_spacing", "visual_radius",

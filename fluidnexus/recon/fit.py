@@ -28,10 +28,15 @@ _IDLE = Stopwatch()
 
 @dataclass(frozen=True)
 class Views:
-    """The cameras and the observed images of one frame: images [V, H, W, C] (engine dtype)."""
+    """The cameras and the observed images of one frame: images [V, H, W, C] (engine dtype), and what each view
+    sees behind the smoke as ``engine.render`` keyword arguments (``background``, ``static``; empty: black)."""
 
     cameras: tuple[Camera, ...]
     images: torch.Tensor
+    behind: tuple[dict, ...] = ()
+
+    def render_args(self, v: int) -> dict:
+        return self.behind[v] if self.behind else {}
 
     def pick(self, generator: torch.Generator, count: int) -> list[int]:
         if count >= len(self.cameras):
@@ -44,7 +49,7 @@ def _render_loss(views: Views, picked: list[int], cfg: ReconConfig, watch: Stopw
     total = 0.0
     for v in picked:
         with watch.measure("render"):
-            image, _, _ = engine.render(views.cameras[v], x, scale, rotation, opacity, color)
+            image, _, _ = engine.render(views.cameras[v], x, scale, rotation, opacity, color, **views.render_args(v))
         total = total + image_loss(image, views.images[v], cfg.w_l1, cfg.w_dssim)
     return total / len(picked)
 

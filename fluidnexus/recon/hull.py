@@ -3,8 +3,9 @@
 The first frame's hull seeds the visual particles before their positions are fitted to the first frame (Alg. S1,
 initialisation), and the hulls of the first frames with smoke locate the inflow in the footage itself
 (``source_finder``), which is more reliable than a box corner of the calibration. A voxel centre is kept when it
-projects onto smoke (intensity above ``threshold``) in every view (a voxel outside some view's image is dropped,
-which keeps ghosts at the image borders out).
+projects onto smoke in every view (a pixel that differs from what the view sees behind the smoke by more than
+``threshold``: its clean plate, the backdrop colour, or black; ``fluidnexus.backdrop``). A voxel outside some view's
+image is dropped, which keeps ghosts at the image borders out.
 """
 from __future__ import annotations
 
@@ -31,29 +32,18 @@ def hull_grid(volume: Volume, voxel: float) -> list[np.ndarray]:
     return [np.arange(lo[a] + voxel / 2, hi[a], voxel) for a in range(3)]
 
 
-LUMA = (0.299, 0.587, 0.114)  # the gray of a colour, as fluidnexus.video reads gray footage
-
-
-def backdrop_value(color, channels: int) -> np.ndarray | None:
-    """A backdrop colour (3,) as the [channels] value of footage read with ``channels``; None stays None."""
-    if color is None:
-        return None
-    color = np.asarray(color, dtype=np.float32)
-    return np.array([float(np.dot(LUMA, color))], np.float32) if channels == 1 else color
-
-
 def smoke_mask(image: np.ndarray, threshold: float, backdrop=None) -> np.ndarray:
-    """[H, W] bool: pixels of ``image`` [H, W, C] that differ from the backdrop value [C] (black without one) by
-    more than ``threshold`` in some channel (smoke glows on black, darkens white)."""
+    """[H, W] bool: pixels of ``image`` [H, W, C] that differ from the backdrop ([C] one value or [H, W, C] a
+    plate; black without one) by more than ``threshold`` in some channel (smoke glows on black, darkens white)."""
     if backdrop is None:
         return image.max(axis=2) > threshold
     return np.abs(image - np.asarray(backdrop, image.dtype)).max(axis=2) > threshold
 
 
 def visual_hull(cameras: tuple[Camera, ...], images: np.ndarray, volume: Volume, voxel: float,
-                threshold: float = 0.05, backdrop=None) -> Hull:
-    """Voxel centres on a ``voxel``-metre grid over ``volume`` that every view sees, as smoke (``smoke_mask``
-    against ``backdrop``, a [C] value; black without one).
+                threshold: float = 0.05, backdrops=None) -> Hull:
+    """Voxel centres on a ``voxel``-metre grid over ``volume`` that every view sees as smoke (``smoke_mask``
+    against the view's entry of ``backdrops``: [V] arrays [C] or [H, W, C]; black without them).
 
     The grid is tested in slabs of at most ``CHUNK_POINTS`` voxels (whole x-planes), so the memory needed is
     that of one slab plus the kept points, whatever the grid's size.
@@ -63,7 +53,8 @@ def visual_hull(cameras: tuple[Camera, ...], images: np.ndarray, volume: Volume,
         images: [V, H, W, C] one frame per view, in [0, 1].
     """
     xs, ys, zs = hull_grid(volume, voxel)
-    masks = [smoke_mask(image, threshold, backdrop) for image in images]
+    backdrops = [None] * len(images) if backdrops is None else backdrops
+    masks = [smoke_mask(image, threshold, backdrop) for image, backdrop in zip(images, backdrops)]
     planes = max(1, CHUNK_POINTS // max(1, len(ys) * len(zs)))
     kept = [np.zeros((0, 3))]
     for i in range(0, len(xs), planes):

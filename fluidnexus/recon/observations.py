@@ -5,6 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..backdrop import Backdrop, Behind, scene_backdrop
 from ..camera import Camera
 from ..errors import InputError
 from ..scene import SCENE_FILE, Scene
@@ -20,12 +21,14 @@ class Observations:
         cameras: the views' cameras at the run resolution, [V].
         first: scene frame index of ``images[:, 0]``.
         images: float32 [V, T, H, W, C] in [0, 1]; memory V*T*H*W*C*4 bytes.
+        behind: what each view sees behind the smoke, at the run resolution [V] (``fluidnexus.backdrop``).
     """
 
     names: tuple[str, ...]
     cameras: tuple[Camera, ...]
     first: int
     images: np.ndarray
+    behind: tuple[Behind, ...]
 
     @property
     def num_frames(self) -> int:
@@ -48,8 +51,10 @@ def resolve_frames(scene: Scene, frames: tuple[int, int | None]) -> tuple[int, i
     return start, stop
 
 
-def load_observations(scene: Scene, frames: tuple[int, int], resolution: float, channels: int) -> Observations:
-    """Read every usable view (input views, and novel views that have a video) of ``frames`` at ``resolution``."""
+def load_observations(scene: Scene, frames: tuple[int, int], resolution: float, channels: int,
+                      backdrop: Backdrop | None = None) -> Observations:
+    """Read every usable view (input views, and novel views that have a video) of ``frames`` at ``resolution``,
+    with what each sees behind the smoke (``backdrop``, default the scene's own: plates, colour or black)."""
     views = scene.usable_views()
     if not views:
         raise InputError(scene.root / SCENE_FILE, "views",
@@ -58,4 +63,7 @@ def load_observations(scene: Scene, frames: tuple[int, int], resolution: float, 
     size = (cameras[0].width, cameras[0].height)
     images = np.stack([read_video(scene.video_path(v), frames=slice(*frames), size=size, channels=channels)
                        for v in views])
-    return Observations(tuple(v.name for v in views), cameras, frames[0], images)
+    if backdrop is None:
+        backdrop = scene_backdrop(scene, channels)
+    behind = tuple(backdrop.behind(cam, v.name) for v, cam in zip(views, cameras))
+    return Observations(tuple(v.name for v in views), cameras, frames[0], images, behind)

@@ -38,7 +38,9 @@ from ..engine import cylinder_lattice
 from .initial import emit, frame_generator, initial_smoke, initial_visual, physical_source, visual_source
 from .observations import load_observations, resolve_frames
 from .source_finder import FoundSource, find_source
-from ..obstacles import engine_obstacle
+from ..backdrop import scene_backdrop
+from ..static import STATIC_FILE, save_static
+from .scenery import declared_scenery, fit_scenery
 from .smoke import Smoke
 from .timing import Stopwatch
 from .workspace import Workspace
@@ -142,25 +144,31 @@ def reconstruct(scene: Scene, out: str | Path, setup: RunSetup, resume: bool = F
     out = Path(out)
     cfg = setup.config
     frames = resolve_frames(scene, cfg.frames)
-    obstacle = engine_obstacle(scene.obstacles, scene.root, scene.volume)  # before anything is written
+    declared = declared_scenery(scene)  # before anything is written
+    limit = memory.parse_limit(None) if max_memory is None else max_memory
+    memory.check(memory.recon_estimate(scene, replace(setup, config=replace(cfg, frames=frames)), frames, 0), limit)
+    if not resume:
+        _refuse_occupied(out)
+    cameras = {v.name: v.camera.scaled(cfg.resolution) for v in scene.usable_views()}
+    scenery = fit_scenery(scene, declared, cameras, cfg.channels, cfg.static_iters, cfg.seed, out / STATIC_FILE)
+    obstacle = scenery.obstacle
     if obstacle is not None and cfg.lambda_next:
         log.info("the scene has obstacles: the look-ahead term is off (a step with an obstacle has no gradient)")
     setup = replace(setup, config=replace(cfg, frames=frames, lambda_next=0.0 if obstacle else cfg.lambda_next))
     cfg = setup.config
-    limit = memory.parse_limit(None) if max_memory is None else max_memory
-    memory.check(memory.recon_estimate(scene, setup, frames, 0), limit)
-    if not resume:
-        _refuse_occupied(out)
-    obs = load_observations(scene, frames, cfg.resolution, cfg.channels)
+    backdrop = replace(scene_backdrop(scene, cfg.channels), layer=scenery.layer)
+    obs = load_observations(scene, frames, cfg.resolution, cfg.channels, backdrop)
     found, seeds = locate_smoke(scene, obs, cfg, obstacle)
     source = found.source
     log.info("%s", memory.check(memory.recon_estimate(scene, setup, frames, len(seeds)), limit).describe())
     first = _prepare_folder(out, scene, setup, frames, resume)
+    if scenery.layer is not None and not (out / STATIC_FILE).is_file():
+        save_static(out, scenery.layer)
     if first == frames[0]:  # predict/interact read the inflow from run.json, also of an unfinished run
         write_json(out / "run.json", {**read_json(out / "run.json"), "source": source.to_dict(),
-                                      "source_finder": found.record,
-                                      "obstacles": [o.to_dict() for o in scene.obstacles]})
-    ws = Workspace(*capacities(frames[1] - frames[0], setup, source, len(seeds)), setup.solver, setup.model)
+                                      "source_finder": found.record, **scenery.record})
+    ws = Workspace(*capacities(frames[1] - frames[0], setup, source, len(seeds)), setup.solver, setup.model,
+                   extra_gaussians=max((len(b.static) for b in obs.behind if b.static is not None), default=0))
     ws.set_obstacle(obstacle)
     handler = logging.FileHandler(out / "logs" / "recon.log")
     handler.setFormatter(logging.Formatter("%(asctime)s %(message)s"))
@@ -175,7 +183,8 @@ def reconstruct(scene: Scene, out: str | Path, setup: RunSetup, resume: bool = F
 
 
 def _views(obs, t: int, dtype) -> Views:
-    return Views(obs.cameras, torch.as_tensor(obs.frame(t), dtype=dtype))
+    return Views(obs.cameras, torch.as_tensor(obs.frame(t), dtype=dtype),
+                 tuple(b.render_args(dtype) for b in obs.behind))
 
 
 def _frame_loop(out, setup, obs, ws, source, seeds, first, watch, volume) -> dict:

@@ -17,8 +17,8 @@ from the first frames with smoke, across every usable view, through multi-view v
 4. The speed: the least-squares slope of the smoke front (98th-percentile extent along the direction) over the same
    frames, in m/s. The emission window starts at t0 when the smoke appears after the run's first frame.
 
-The hulls see smoke where a view differs from the scene's ``backdrop_color`` (black without one) and not inside an
-obstacle. A declared source keeps its direction, radius, speed and window; its centre moves to the foot of the first frame's
+The hulls see smoke where a view differs from what it sees behind the smoke (its clean plate, the scene's
+``backdrop_color``, or black: ``fluidnexus.backdrop``) and not inside an obstacle. A declared source keeps its direction, radius, speed and window; its centre moves to the foot of the first frame's
 hull along its direction when the frame has smoke (for an upward source: the centre of the hull's lowest slab, the
 behaviour of every earlier version). What was found, and how, is recorded in run.json (``source_finder``).
 """
@@ -30,7 +30,7 @@ import numpy as np
 
 from ..engine.emitter import UP, rotation_from_up
 from ..scene import Scene, Source
-from .hull import backdrop_value, visual_hull
+from .hull import visual_hull
 
 MIN_POINTS = 8
 FOLLOW_FRAMES = 8
@@ -94,10 +94,9 @@ def find_source(scene: Scene, obs, voxel: float, slab: float, fallback: Source, 
     if scene.volume is None:
         return FoundSource(fallback, np.zeros((0, 3)), {"method": "no volume: the scene's source or its default"})
 
-    backdrop = backdrop_value(scene.backdrop_color, obs.images.shape[-1])
-
     def hull(t: int, coarsening: int = 1) -> np.ndarray:
-        points = visual_hull(obs.cameras, obs.frame(t), scene.volume, voxel * coarsening, backdrop=backdrop).points
+        points = visual_hull(obs.cameras, obs.frame(t), scene.volume, voxel * coarsening,
+                             backdrops=[b.background for b in obs.behind]).points
         return points if obstacle is None or not len(points) else points[obstacle.distance(points) > 0]
 
     seeds = hull(first)

@@ -22,7 +22,8 @@ class Workspace:
         solver, model: the PBF gas (constants, external terms).
     """
 
-    def __init__(self, physical_capacity: int, visual_capacity: int, solver: SolverConfig, model: ModelConfig):
+    def __init__(self, physical_capacity: int, visual_capacity: int, solver: SolverConfig, model: ModelConfig,
+                 extra_gaussians: int = 0):
         self.solver, self.model = solver, model
         self.dtype = torch_dtype()
         self.sim = PBFSimulator(physical_capacity, solver, model)
@@ -34,7 +35,8 @@ class Workspace:
         self._pair_points = ti.Vector.field(3, engine.real(), shape=visual_capacity)
         self._pair_dtype = np.float64 if self.dtype == torch.float64 else np.float32
         self._pair_table = NeighborTable(visual_capacity, width=32)
-        engine.reserve_gaussians(visual_capacity)  # the render kernels compile once, not at every doubling
+        # the render kernels compile once, not at every doubling; static Gaussians are drawn with the smoke
+        engine.reserve_gaussians(visual_capacity + extra_gaussians)
         self.obstacle, self._projector = None, None
 
     def set_obstacle(self, obstacle) -> None:

@@ -101,6 +101,15 @@ class StaticLayer:
                                   (self.means, self.scales, self.quats, self.opacities, self.colors)))
 
 
+def inside_volume(layer: StaticLayer) -> StaticLayer:
+    """The Gaussians of ``layer`` whose centres lie inside the volume it was fitted in (``info["volume"]``): what
+    stands in front of the backdrop, e.g. an obstacle in the flow."""
+    lo, hi = (np.asarray(v, np.float32) for v in layer.info["volume"])
+    keep = ((layer.means >= lo) & (layer.means <= hi)).all(axis=1)
+    return StaticLayer(layer.means[keep], layer.scales[keep], layer.quats[keep], layer.opacities[keep],
+                       layer.colors[keep], layer.background, layer.info)
+
+
 def render_static(layer: StaticLayer, camera: Camera, return_depth: bool = False):
     """The static layer seen by ``camera``, over its background colour: (image [H, W, C], alpha [H, W], depth)."""
     dtype = torch_dtype()
