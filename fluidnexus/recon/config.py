@@ -48,7 +48,13 @@ class ReconConfig:
         visual_sigma: sigma of that term, metres.
         lambda_color, lambda_scale, lambda_opacity, lambda_rotation: temporal regularisation (paper Eq. 7).
         anisotropy_cap: largest allowed ratio of a Gaussian's largest to smallest scale.
-        color0, scale0, opacity0: constant initial appearance of the visual particles.
+        color0, scale0, opacity0: constant initial appearance of the visual particles (colour and opacity replaced
+            by the fitted initial look where ``initial_look`` says so).
+        initial_look: ``constant`` (color0 and opacity0 as given), ``fit`` (one colour and one opacity fitted to the
+            first frame, ``fit.fit_look``, from color0 / opacity0; the fitted values are saved in config.json) or
+            ``auto``: fit on footage over a backdrop (a scene with clean plates or a backdrop colour other than
+            black), constant on footage over black (the release's constants were tuned on ScalarFlow's glowing
+            smoke on black).
         visual_spacing, visual_radius: visual emitter lattice spacing and disk radius, metres.
         init_visual_radius: radius of the frame-0 visual cylinder, metres.
         physical_spacing: physical initial-lattice spacing, metres.
@@ -104,6 +110,7 @@ class ReconConfig:
     init_visual_height: float = 0.05
     stabilization_steps: int = 20
     static_iters: int = 400
+    initial_look: str = "auto"
     length_scale: float = 1.0
     max_loss: float = 1e6
 
@@ -113,7 +120,7 @@ class ReconConfig:
             "views_per_iter": self.views_per_iter >= 1, "anisotropy_cap": self.anisotropy_cap >= 1,
             "init_iters": self.init_iters >= 0, "dynamics_iters": self.dynamics_iters >= 0,
             "appearance_iters": self.appearance_iters >= 0, "stabilization_steps": self.stabilization_steps >= 0,
-            "static_iters": self.static_iters >= 0,
+            "static_iters": self.static_iters >= 0, "initial_look": self.initial_look in ("auto", "fit", "constant"),
             "frames": self.frames[0] >= 0 and (self.frames[1] is None or self.frames[1] > self.frames[0]),
         }
         for name in ("lr_position", "visual_sigma", "scale0", "visual_spacing", "visual_radius",

@@ -1,5 +1,8 @@
 """The per-frame optimisations of FluidNexus Alg. S1.
 
+- :func:`fit_look`: frame 0, before the positions: one colour and one opacity shared by every visual particle
+  (the initial look; on footage over a backdrop the release's constants, tuned to faint smoke on black, can be far
+  off, e.g. dense grey smoke on white).
 - :func:`fit_positions`: frame 0, visual positions only.
 - :func:`fit_dynamics`: stage 1, the physical positions p_t (Eq. 6): image loss through advection of the visual
   particles by V_t(.|u_t, p_t), plus lambda_sim L_sim and L_incomp (density at p_t, at the differentiable look-ahead
@@ -64,6 +67,34 @@ def _step(loss: torch.Tensor, opt, cfg: ReconConfig, what: str, watch: Stopwatch
         loss.backward()
     opt.step()
     return value
+
+
+LOOK_ITERS = 100
+LOOK_LR = 0.1
+
+
+def fit_look(x: torch.Tensor, views: Views, cfg: ReconConfig, generator: torch.Generator, progress=None,
+             watch: Stopwatch = _IDLE) -> tuple[float, float]:
+    """The initial look: (colour, opacity) shared by Gaussians of size ``cfg.scale0`` at ``x`` [M, 3] (the first
+    frame's visual hull) that best reproduces the frame, from ``cfg.color0`` / ``cfg.opacity0`` (Adam on the two
+    logits, ``LOOK_ITERS`` steps of ``LOOK_LR``)."""
+    m, dtype = x.shape[0], x.dtype
+    raw = torch.tensor([cfg.color0, cfg.opacity0], dtype=dtype)
+    raw = (torch.log(raw) - torch.log1p(-raw)).requires_grad_(True)
+    opt = torch.optim.Adam([raw], lr=LOOK_LR)
+    scale = torch.full((m, 3), cfg.scale0, dtype=dtype)
+    rotation = torch.zeros((m, 4), dtype=dtype)
+    rotation[:, 0] = 1.0
+    channels = views.images.shape[-1]
+    for _ in range(LOOK_ITERS if m else 0):
+        look = torch.sigmoid(raw)
+        loss = _render_loss(views, views.pick(generator, cfg.views_per_iter), cfg, watch, x,
+                            look[0].expand(m, channels), scale, rotation, look[1].expand(m))
+        value = _step(loss, opt, cfg, "initial look", watch)
+        if progress is not None:
+            progress.status(look=value)
+    color, opacity = (float(v) for v in torch.sigmoid(raw.detach()))
+    return color, opacity
 
 
 def fit_positions(smoke: Smoke, views: Views, cfg: ReconConfig, generator: torch.Generator, progress=None,

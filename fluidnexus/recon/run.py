@@ -26,6 +26,7 @@ import torch
 from .. import engine, memory
 from ..atomic import read_json, write_json
 from ..engine import ModelConfig, SolverConfig
+from ..engine.tensors import torch_dtype
 from ..errors import InputError, RunError
 from ..progress import progress
 from ..runs import RUN_FORMAT
@@ -33,7 +34,7 @@ from ..scene import SCENE_FILE, Scene, Source
 from ..scene_scale import SCALARFLOW_SOURCE_RADIUS, scaled_solver, scene_factor
 from ..state import frame_path, load_frame, save_frame
 from .config import ReconConfig, differing_keys
-from .fit import Views, fit_appearance, fit_dynamics, fit_positions
+from .fit import Views, fit_appearance, fit_dynamics, fit_look, fit_positions
 from ..engine import cylinder_lattice
 from .initial import emit, frame_generator, initial_smoke, initial_visual, physical_source, visual_source
 from .observations import load_observations, resolve_frames
@@ -161,6 +162,7 @@ def reconstruct(scene: Scene, out: str | Path, setup: RunSetup, resume: bool = F
     found, seeds = locate_smoke(scene, obs, cfg, obstacle)
     source = found.source
     log.info("%s", memory.check(memory.recon_estimate(scene, setup, frames, len(seeds)), limit).describe())
+    setup = replace(setup, config=_initial_look(scene, cfg, obs, seeds, out, resume))
     first = _prepare_folder(out, scene, setup, frames, resume)
     if scenery.layer is not None and not (out / STATIC_FILE).is_file():
         save_static(out, scenery.layer)
@@ -180,6 +182,29 @@ def reconstruct(scene: Scene, out: str | Path, setup: RunSetup, resume: bool = F
         log.removeHandler(handler)
         handler.close()
     return summary
+
+
+def over_backdrop(scene: Scene) -> bool:
+    """The footage shows the smoke over a backdrop: the scene has clean plates or a backdrop colour other than
+    black."""
+    return bool(scene.backgrounds) or (scene.backdrop_color is not None and any(scene.backdrop_color))
+
+
+def _initial_look(scene: Scene, cfg: ReconConfig, obs, seeds: np.ndarray, out: Path, resume: bool) -> ReconConfig:
+    """``cfg`` with the initial look (``ReconConfig.initial_look``): fitted to the first frame, or read back from
+    the run's config.json when resuming (the fit gives the same values; reading them saves its time)."""
+    fitted = cfg.initial_look == "fit" or (cfg.initial_look == "auto" and over_backdrop(scene))
+    if not fitted:
+        return cfg
+    if resume and (out / "config.json").is_file():
+        saved = read_json(out / "config.json").get("recon", {})
+        return replace(cfg, color0=saved.get("color0", cfg.color0), opacity0=saved.get("opacity0", cfg.opacity0))
+    dtype = torch_dtype()
+    color, opacity = fit_look(torch.as_tensor(seeds, dtype=dtype), _views(obs, cfg.frames[0], dtype), cfg,
+                              frame_generator(cfg.seed, cfg.frames[0]))
+    log.info("initial look fitted to frame %d: colour %.4g, opacity %.4g (from %.4g, %.4g)", cfg.frames[0], color,
+             opacity, cfg.color0, cfg.opacity0)
+    return replace(cfg, color0=color, opacity0=opacity)
 
 
 def _views(obs, t: int, dtype) -> Views:

@@ -1,8 +1,8 @@
 """diagnose finds an effect hidden in data made by a different solver (tests/diagnose/eulerian_plume.py).
 
 Each test hides one effect (or two) at a magnitude drawn from a seeded range, runs diagnose on 48 frames (train
-0:32, validate 32:48) and requires the right name. CI runs the no-effect control, wind and dissipation; the
-other effects are ``slow``. Buoyancy decay, vorticity confinement, viscosity and swirl are ``xfail``: their
+0:32, validate 32:48) and requires the right name. Every diagnose here is ``slow`` (each fits both model
+structures: 4-11 min on a 2-core CPU), so ``make test`` runs only the visibility test; ``make test-slow`` runs all. Buoyancy decay, vorticity confinement, viscosity and swirl are ``xfail``: their
 data differ from a plain plume with the same generator constants (``test_hidden_effects_are_visible``), but
 diagnose does not name them. Buoyancy decay cannot be named from this footage by any model: a plain plume with
 weaker buoyancy matches its training frames (``test_nearest_plain_plume_on_the_training_frames``). The measured
@@ -120,6 +120,7 @@ def test_hidden_effects_are_visible(template, tmp_path):
     assert visibility(template, tmp_path / "off", PlumeEffects(), plain) < 1e-9
 
 
+@pytest.mark.slow
 def test_diagnose_plain_plume_finds_none(template, tmp_path, ti_engine):
     """A plain grid plume rises in air: the gas in ambient air is the structure, and no term is found."""
     report = run_diagnose(template, tmp_path, PlumeEffects())
@@ -127,6 +128,7 @@ def test_diagnose_plain_plume_finds_none(template, tmp_path, ti_engine):
     assert report["finding"]["effect"] == "none", report["candidates"]
 
 
+@pytest.mark.slow
 def test_diagnose_pbf_gas_control_keeps_paper_gas(template, tmp_path, ti_engine):
     """The control: a plume made by the paper's PBF gas itself (tests/diagnose/pbf_plume.py: a finer lattice,
     jittered inflow) keeps the paper's gas as the structure, and no term is found."""
@@ -135,6 +137,7 @@ def test_diagnose_pbf_gas_control_keeps_paper_gas(template, tmp_path, ti_engine)
     assert report["finding"]["effect"] == "none", report["candidates"]
 
 
+@pytest.mark.slow
 @pytest.mark.xfail(strict=False, reason="with the structure level (2026-11-23, 10 evaluations): the structure is "
                    "ambient_air (validation error 0.783 -> 0.608, 22.4 %) and wind is named (38.6 %), but at 0.126 m/s "
                    "for 0.088 (+43 %, limit 40 %) and 30.6 deg off (limit 25); with the paper's gas it was 0.095 m/s, "
@@ -152,6 +155,7 @@ def test_diagnose_finds_hidden_wind(template, tmp_path, ti_engine):
     assert report["finding"]["gain"]["after"] < report["finding"]["gain"]["before"]
 
 
+@pytest.mark.slow
 def test_diagnose_finds_hidden_dissipation(template, tmp_path, ti_engine):
     rate = np.random.default_rng(12).uniform(0.4, 0.9)
     report = run_diagnose(template, tmp_path, PlumeEffects(rate=rate))
