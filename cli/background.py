@@ -29,7 +29,7 @@ def parse_color(text: str | None) -> np.ndarray | None:
 
 def parse_plates(items: tuple[str, ...], scene, views) -> dict[str, tuple[Path, np.ndarray]]:
     """``--plate NAME=FILE``: each names an input view with footage once, and its image has that camera's size."""
-    from fluidnexus.background.store import read_image
+    from fluidnexus.background.store import read_plate_file
 
     by_name = {v.name: v for v in views}
     out = {}
@@ -43,12 +43,9 @@ def parse_plates(items: tuple[str, ...], scene, views) -> dict[str, tuple[Path, 
                                               f"{sorted(by_name)}")
         if name in out:
             raise InputError(None, "--plate", f"view {name!r} is given two plates")
-        image = read_image(file)
         cam = by_name[name].camera
-        if image.shape[:2] != (cam.height, cam.width):
-            raise InputError(file, "--plate", f"is {image.shape[1]}x{image.shape[0]}, but view {name!r}'s camera "
-                                              f"(and video) is {cam.width}x{cam.height}")
-        out[name] = (Path(file), image)
+        out[name] = (Path(file), read_plate_file(file, cam.width, cam.height, "--plate",
+                                                 f"view {name!r}'s camera (and video)"))
     return out
 
 
@@ -73,12 +70,10 @@ def background(scene_dir: Path, plates: tuple[str, ...], color: str | None, reso
     fluidnexus background scene
     fluidnexus background scene --plate cam0=empty_wall.png --color 1,1,1
     """
-    from fluidnexus.background.estimate import estimate_view, working_scale
-    from fluidnexus.background.plates import PlateEstimate
+    from fluidnexus.background.estimate import estimate_view, given_plate, working_scale
     from fluidnexus.background.sheet import contact_sheet
     from fluidnexus.background.store import FOLDER, write_backgrounds
     from fluidnexus.progress import progress
-    from fluidnexus.video import read_video
 
     scene = load_scene(scene_dir)
     views = [v for v in scene.with_role("input") if v.video is not None]
@@ -97,10 +92,7 @@ def background(scene_dir: Path, plates: tuple[str, ...], color: str | None, reso
         for view in views:
             path = scene.video_path(view)
             if view.name in given:
-                file, image = given[view.name]
-                est = PlateEstimate(image, np.ones(image.shape[:2], np.float32), "plate", {"file": str(file)})
-                middle = read_video(path, frames=slice(scene.frame_count // 2, scene.frame_count // 2 + 1),
-                                    channels=3)[0]
+                est, middle = given_plate(*given[view.name], path, scene.frame_count)
             else:
                 est, middle = estimate_view(view.name, path, view.camera.width, view.camera.height, scale, known)
             estimates[view.name] = est

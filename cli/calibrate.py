@@ -65,6 +65,9 @@ def _parse_scale_distance(text: str | None):
 @click.option("--scale-distance", help="NAME_A,NAME_B,METRES: metric scale from two camera centres (--images).")
 @click.option("--fov-deg", type=float, help="Horizontal field of view of --video, degrees.")
 @click.option("--rig", type=click.Choice(["arc"]), default="arc", show_default=True, help="Rig shape for --video.")
+@click.option("--plate", type=click.Path(path_type=Path),
+              help="An image of --video's empty backdrop (the clean plate), written into the scene as "
+                   "'fluidnexus background --plate' would (without it, run fluidnexus background later).")
 @click.option("--views", type=int, default=5, show_default=True, help="Cameras on the arc, the input included.")
 @click.option("--arc-deg", type=float, default=120.0, show_default=True, help="Angle the arc spans.")
 @click.option("--distance", type=float, default=1.2, show_default=True, help="Camera-to-plume-axis distance, m.")
@@ -94,6 +97,7 @@ def calibrate(out: Path, overwrite: bool, to_pinf: Path | None, paths: tuple[Pat
     fluidnexus calibrate --images cam0.mp4 cam1.mp4 cam2.mp4 --scale-distance cam0,cam2,0.9 --out scene
     fluidnexus calibrate --images cam*.png --media footage/ --out scene
     fluidnexus calibrate --video plume.mp4 --fov-deg 60 --rig arc --views 5 --arc-deg 120 --out scene
+    fluidnexus calibrate --video plume.mp4 --plate empty_backdrop.png --fov-deg 60 --out scene
     """
     if bool(paths) != opts["images"]:
         raise InputError(None, "--images", "list the images or videos after --images (and only there)")
@@ -103,6 +107,9 @@ def calibrate(out: Path, overwrite: bool, to_pinf: Path | None, paths: tuple[Pat
     if len(chosen) != 1:
         raise InputError(None, "calibrate", "give exactly one of --from-pinf, --from-nerf, --from-colmap, "
                                             f"--images, --video, --sample (got {len(chosen)})")
+    if opts["plate"] is not None and chosen[0] != "video":
+        raise InputError(None, "--plate", "applies to --video only; give the plates of other scenes with "
+                                          "'fluidnexus background SCENE --plate NAME=FILE'")
     if opts["metres_per_unit"] is not None:
         if chosen[0] not in IMPORTS:
             raise InputError(None, "--metres-per-unit", "applies to imported files only (--from-pinf, --from-nerf, "
@@ -218,6 +225,13 @@ def _from_video(out: Path, opts) -> Scene:
     if opts["fov_deg"] is None:
         raise InputError(None, "--fov-deg", "required with --video (the camera's horizontal field of view)")
     info = probe_video(video)
+    plate = None
+    if opts["plate"] is not None:  # checked before anything is written
+        from fluidnexus.background.estimate import given_plate
+        from fluidnexus.background.store import read_plate_file
+
+        image = read_plate_file(opts["plate"], info.width, info.height, "--plate", f"the video {video}")
+        plate = given_plate(opts["plate"], image, video, info.frame_count)
     rig = arc_rig(info.width, info.height, opts["fov_deg"], opts["views"], opts["arc_deg"], opts["distance"],
                   opts["camera_height"], opts["source_radius"], input_name=video.stem)
     views = [(View(video.stem, "input", rig.input_camera), video)]
@@ -228,8 +242,18 @@ def _from_video(out: Path, opts) -> Scene:
         raise InputError(video, "fps", "the footage does not state a frame rate; pass --fps")
     extra = {"rig": {"kind": "arc", "fov_deg": opts["fov_deg"], "views": opts["views"], "arc_deg": opts["arc_deg"],
                      "distance": opts["distance"]}}
-    return write_scene(out, rate, info.frame_count, views, [], rig.volume, rig.source, extra, link=opts["link"],
-                       obstacles=opts["obstacles"])
+    scene = write_scene(out, rate, info.frame_count, views, [], rig.volume, rig.source, extra, link=opts["link"],
+                        obstacles=opts["obstacles"])
+    if plate is None:
+        log.info("no --plate: 'fluidnexus background %s' estimates the clean plate from the footage", out)
+        return scene
+    from fluidnexus.background.sheet import contact_sheet
+    from fluidnexus.background.store import write_backgrounds
+
+    estimate, middle = plate
+    records = write_backgrounds(scene, {video.stem: estimate}, contact_sheet([(video.stem, middle, estimate)]))
+    log.info("plate of %s: %s", video.stem, scene.root / records[video.stem].plate)
+    return load_scene(out, check_videos=False)
 
 
 def write_pinf(scene_dir: Path, dest: Path) -> None:

@@ -49,6 +49,27 @@ def read_footage(path: Path, size: tuple[int, int] | None = None) -> np.ndarray:
     return video
 
 
+def smoke_only(scene, source, footage: np.ndarray) -> tuple[np.ndarray, dict]:
+    """The smoke layer of ``source``'s footage [T, h, w, C] over its plate (docs/background.md, "Smoke layer for a
+    single video"), premultiplied over black, and its provenance record."""
+    from fluidnexus.backdrop import resize_image, to_channels
+    from fluidnexus.background.smoke_layer import NoSmoke, smoke_layer
+    from fluidnexus.background.store import read_plate
+
+    plate, confidence = read_plate(scene, source.name)
+    height, width = footage.shape[1:3]
+    plate = to_channels(resize_image(plate, width, height), footage.shape[-1])
+    confidence = resize_image(confidence[..., None], width, height)[..., 0]
+    record = scene.backgrounds[source.name].plate
+    try:
+        smoke = smoke_layer(footage, plate, confidence)
+    except NoSmoke as err:
+        raise InputError(scene.video_path(source), None, f"shows no smoke over its plate {record} ({err})") from None
+    log.info("synth: smoke layer of %s over %s: colour %s, ill-conditioned pixels %.1f%%", source.name, record,
+             smoke.summary()["smoke_color"], 100 * smoke.ill_conditioned)
+    return smoke.layer, {"over": "black", "input_plate": record, **smoke.summary()}
+
+
 @click.command()
 @click.argument("scene_dir", metavar="SCENE", type=click.Path(path_type=Path, file_okay=False))
 @click.option("--method", type=click.Choice(["axisym", "zero123"]), default="axisym", show_default=True,
@@ -65,6 +86,9 @@ def read_footage(path: Path, size: tuple[int, int] | None = None) -> np.ndarray:
 def synth(scene_dir: Path, method: str, weights: Path | None, input_name: str | None, steps: int, guidance: float,
           seed: int, device: str, resolution: str, max_memory: str) -> None:
     """Synthesise a video for every novel view of SCENE from its input view.
+
+    Where the input view has a clean plate (fluidnexus background), its smoke layer is synthesised instead of the
+    raw frames: the novel videos show the smoke alone over black.
 
     \b
     fluidnexus synth scene                       # axisym, runs anywhere
@@ -100,6 +124,9 @@ def synth(scene_dir: Path, method: str, weights: Path | None, input_name: str | 
 
         synthesizer = make_synthesizer(method, config=AxisymConfig().scaled(scene_factor(scene)))
     footage = read_footage(scene.video_path(source), (camera.width, camera.height))
+    smoke = None  # the smoke layer's provenance record, with a plate
+    if source.name in scene.backgrounds:
+        footage, smoke = smoke_only(scene, source, footage)
     inp = SynthesisInput(footage, camera, scene.source, scene.volume)
     done = {}
     for view in novel:
@@ -108,7 +135,9 @@ def synth(scene_dir: Path, method: str, weights: Path | None, input_name: str | 
         working = view.camera.scaled(scale)
         video = resized(synthesizer.synthesize(inp, working), stored_size(view.camera, working))
         write_video(scene.root / rel, video, scene.fps)
-        done[view.name] = View(view.name, view.role, view.camera, rel,
-                               {"synth": {**synthesizer.provenance(), "input": source.name, "resolution": scale}})
+        provenance = {"synth": {**synthesizer.provenance(), "input": source.name, "resolution": scale}}
+        if smoke is not None:
+            provenance["smoke_layer"] = smoke
+        done[view.name] = View(view.name, view.role, view.camera, rel, provenance)
     save_views(scene.root, tuple(done.get(v.name, v) for v in scene.views))
     log.info("wrote %d novel videos into %s", len(done), scene.root / "videos")

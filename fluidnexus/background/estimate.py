@@ -1,4 +1,5 @@
-"""One view's plate from its video: read the footage at a working scale, estimate, bring the plate to full size."""
+"""One view's plate: a user's image, or estimated from its video (read the footage at a working scale, estimate,
+bring the plate to full size)."""
 from __future__ import annotations
 
 import math
@@ -50,3 +51,11 @@ def estimate_view(name: str, video_path: Path, width: int, height: int, scale: f
     estimate = estimate.resized(width, height)
     return PlateEstimate(estimate.plate, estimate.confidence, estimate.source,
                          {**estimate.detail, "scale": round(scale, 4)}), middle
+
+
+def given_plate(file: Path, image: np.ndarray, video_path: Path, frame_count: int) -> tuple[PlateEstimate, np.ndarray]:
+    """A user's plate ``image`` [H, W, 3] read from ``file``, used as is (confidence 1, source ``plate``), and the
+    middle frame of the view's video (for the contact sheet)."""
+    estimate = PlateEstimate(image, np.ones(image.shape[:2], np.float32), "plate", {"file": str(file)})
+    middle = read_video(video_path, frames=slice(frame_count // 2, frame_count // 2 + 1), channels=3)[0]
+    return estimate, middle

@@ -32,6 +32,18 @@ def read_image(path: str | Path) -> np.ndarray:
     return cv2.cvtColor(image[:, :, :3], cv2.COLOR_BGR2RGB).astype(np.float32) / scale
 
 
+def read_plate_file(path: str | Path, width: int, height: int, field: str, owner: str) -> np.ndarray:
+    """A user's plate image (:func:`read_image`) that must be ``width x height``, the size of ``owner`` (words for
+    the error, e.g. "view 'cam0''s camera"); errors name the file and ``field``."""
+    try:
+        image = read_image(path)
+    except InputError as err:
+        raise err.at(prefix=field) from None
+    if image.shape[:2] != (height, width):
+        raise InputError(path, field, f"is {image.shape[1]}x{image.shape[0]}, but {owner} is {width}x{height}")
+    return image
+
+
 def read_plate(scene: Scene, view: str) -> tuple[np.ndarray, np.ndarray] | None:
     """The plate [H, W, 3] and confidence [H, W] (float32 in [0, 1]) of ``view``; None if it has none."""
     record = scene.backgrounds.get(view)

@@ -1,0 +1,150 @@
+"""The smoke layer of a fixed camera's video, given its clean plate (docs/background.md, "Smoke layer for a single
+video").
+
+A frame is the smoke composited over the plate, ``I = A a + B (1 - a)`` per pixel (the haze model): ``B`` the plate
+[H, W, C], ``a`` the smoke's opacity per pixel and frame, ``A`` the smoke's colour [C]. Per pixel these are C
+equations in C + 1 unknowns, so one assumption is needed: **one smoke colour A for the whole video**. Given A, the
+opacity is the least-squares solution over the channels, ``a = (I - B).(A - B) / |A - B|^2``, clipped to [0, 1],
+and the smoke layer is what the smoke alone shows over black, premultiplied: ``S = A a``.
+
+**The colour** is that of the densest smoke, taken as opaque (like the atmospheric light of dehazing, read off the
+haziest pixels): among the samples (pixel, frame) that differ from a confident plate pixel (confidence >= 0.5) by
+more than the noise floor, A is the per-channel median colour of the ``DENSE_FRACTION`` with the largest opacity
+under A itself, found by a fixed-point iteration that starts from the samples farthest from their plate. The
+samples farthest from the plate are not simply the densest (a sample over a backdrop far from A differs more at
+the same opacity); the fixed point picks the samples that lie beyond all others along their line from B through A.
+Smoke that is never opaque yields the colour of its densest part, a mix of A and the backdrop behind it, and
+opacities scaled up to match (their product with ``A - B`` is what the footage fixes).
+
+**Ill-conditioned pixels**, where the plate is close to the smoke's colour (``|A - B| < MIN_CONTRAST``), do not
+show the smoke: there the denominator is held at ``MIN_CONTRAST^2``, so noise is amplified at most
+``1 / MIN_CONTRAST`` times and the opacity fades to 0 as B approaches A (such smoke is invisible in the footage and
+stays faint in the layer). **Samples that barely differ from the plate** (no channel by more than the noise floor,
+``max(MIN_CHANGE, NOISE_FACTOR x`` the video's frame-to-frame noise``)``) get opacity 0, so codec noise and small
+plate errors leave no haze of the backdrop's texture in the layer.
+
+Nothing assumes smoke brighter or darker than the backdrop: A above or below B is the same formula. Everything is
+numpy, over chunks of frames (about ``CHUNK_VALUES`` values each) besides the returned arrays.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .plates import CONFIDENT, MIN_CHANGE, NOISE_FACTOR, noise_level
+
+MIN_CONTRAST = 0.1  # |A - B| (Euclidean over the channels, [0, 1] units) below which a pixel is ill-conditioned
+DENSE_FRACTION = 0.01  # share of the smoke samples taken as the densest smoke
+MIN_DENSE = 16  # ... and at least this many
+POOL = 200_000  # smoke samples kept (evenly spread over the video) to estimate the colour
+ITERATIONS = 20  # fixed-point iterations for the colour, at most
+TOLERANCE = 1e-4  # ... stopping once no channel moves by more
+CHUNK_VALUES = 1 << 24  # float32 values per chunk of frames (64 MB)
+
+
+class NoSmoke(Exception):
+    """No sample of the video differs from the plate by more than the noise floor."""
+
+
+@dataclass(frozen=True)
+class SmokeLayer:
+    """The smoke of a video, separated from its plate.
+
+    Attributes:
+        layer: [T, H, W, C] float32 in [0, 1], the smoke over black, premultiplied: ``S = A a``.
+        alpha: [T, H, W] float32 in [0, 1], the smoke's opacity ``a``.
+        color: [C] float32 in [0, 1], the smoke's colour ``A``.
+        ill_conditioned: share of the pixels whose plate is within ``MIN_CONTRAST`` of ``A``.
+        noise_floor: a sample differing from the plate by less than this in every channel has opacity 0.
+    """
+
+    layer: np.ndarray
+    alpha: np.ndarray
+    color: np.ndarray
+    ill_conditioned: float
+    noise_floor: float
+
+    def summary(self) -> dict:
+        """The colour and the two facts above, for scene.json."""
+        return {"smoke_color": [round(float(c), 4) for c in self.color],
+                "ill_conditioned_fraction": round(self.ill_conditioned, 4), "noise_floor": round(self.noise_floor, 4)}
+
+
+def smoke_layer(video: np.ndarray, plate: np.ndarray, confidence: np.ndarray) -> SmokeLayer:
+    """Separate the smoke of ``video`` from its clean plate (module docstring).
+
+    Args:
+        video: [T, H, W, C] float32 in [0, 1], a fixed camera's frames.
+        plate: [H, W, C] float32 in [0, 1], its clean plate.
+        confidence: [H, W] in [0, 1], the plate's confidence; only confident pixels (>= 0.5) estimate the colour,
+            unless too few of them show smoke.
+
+    Raises:
+        NoSmoke: the video never differs from the plate by more than the noise floor.
+    """
+    if video.shape[1:] != plate.shape or confidence.shape != plate.shape[:2]:
+        raise ValueError(f"video {video.shape}, plate {plate.shape} and confidence {confidence.shape} do not match")
+    plate = np.asarray(plate, np.float32)
+    floor = max(MIN_CHANGE, NOISE_FACTOR * noise_level(video))
+    chunk = max(1, CHUNK_VALUES // plate.size)
+    color = _dense_color(*_smoke_samples(video, plate, confidence >= CONFIDENT, floor, chunk))
+    step = color - plate  # [H, W, C]
+    contrast2 = (step * step).sum(axis=-1)
+    weight = step / np.maximum(contrast2, MIN_CONTRAST ** 2)[..., None]
+    alpha = np.empty(video.shape[:3], np.float32)
+    layer = np.empty(video.shape, np.float32)
+    for start in range(0, len(video), chunk):
+        diff = video[start:start + chunk] - plate
+        a = (diff * weight).sum(axis=-1)
+        a[np.abs(diff).max(axis=-1) < floor] = 0
+        alpha[start:start + chunk] = np.clip(a, 0, 1)
+        layer[start:start + chunk] = alpha[start:start + chunk, ..., None] * color
+    return SmokeLayer(layer, alpha, color, float((contrast2 < MIN_CONTRAST ** 2).mean()), floor)
+
+
+def _smoke_samples(video: np.ndarray, plate: np.ndarray, confident: np.ndarray, floor: float,
+                   chunk: int) -> tuple[np.ndarray, np.ndarray]:
+    """Samples (I, B), each [N, C], that differ from the plate by at least ``floor`` in some channel: up to
+    ``POOL`` of them, evenly spread over each chunk of frames; only those at ``confident`` pixels unless fewer than
+    ``MIN_DENSE`` of them are."""
+    pixels = plate.shape[0] * plate.shape[1]
+    flat_plate, flat_confident = plate.reshape(pixels, -1), confident.ravel()
+    images, kept = [], []
+    for start in range(0, len(video), chunk):
+        frames = video[start:start + chunk]
+        idx = np.flatnonzero(np.abs(frames - plate).max(axis=-1) >= floor)
+        idx = idx[::max(1, math.ceil(len(idx) * len(video) / (POOL * len(frames))))]
+        images.append(frames.reshape(-1, plate.shape[-1])[idx])
+        kept.append(idx % pixels)
+    image, pixel = np.concatenate(images), np.concatenate(kept)
+    if not len(image):
+        raise NoSmoke(f"no pixel differs from the plate by {floor:.3f} or more in any frame")
+    sure = flat_confident[pixel]
+    if sure.sum() >= MIN_DENSE:
+        image, pixel = image[sure], pixel[sure]
+    return image, flat_plate[pixel]
+
+
+def _dense_color(image: np.ndarray, back: np.ndarray) -> np.ndarray:
+    """[C] the colour of the densest smoke among samples ``image`` over ``back`` ([N, C] each): the fixed point of
+    "the median of the ``DENSE_FRACTION`` samples with the largest opacity under this colour" (module docstring),
+    started from the samples farthest from their plate."""
+    count = min(len(image), max(MIN_DENSE, math.ceil(DENSE_FRACTION * len(image))))
+    far = np.argpartition(-np.linalg.norm(image - back, axis=1), count - 1)[:count]
+    color = np.median(image[far], axis=0)
+    for _ in range(ITERATIONS):
+        step = color - back
+        contrast2 = (step * step).sum(axis=1)
+        usable = contrast2 >= MIN_CONTRAST ** 2
+        if usable.sum() < count:
+            break
+        alpha = ((image - back) * step).sum(axis=1)[usable] / contrast2[usable]
+        dense = np.argpartition(-alpha, count - 1)[:count]
+        new = np.median(image[usable][dense], axis=0)
+        moved = float(np.abs(new - color).max())
+        color = new
+        if moved < TOLERANCE:
+            break
+    return color.astype(np.float32)
