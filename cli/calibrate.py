@@ -13,7 +13,7 @@ from fluidnexus.calibrate.arc import arc_rig
 from fluidnexus.calibrate.assemble import Recording, Roles, assign_roles, write_scene
 from fluidnexus.calibrate.colmap import media_by_stem, read_colmap
 from fluidnexus.calibrate.nerf import read_nerf
-from fluidnexus.calibrate.pinf import DEFAULT_SOURCE_RADIUS, pinf_dict, read_pinf, source_at_volume_foot
+from fluidnexus.calibrate.pinf import pinf_dict, read_pinf, source_at_volume_foot
 from fluidnexus.errors import InputError, require_positive
 from fluidnexus.obstacles import parse_option
 from fluidnexus.samples import sample_path
@@ -72,8 +72,8 @@ def _parse_scale_distance(text: str | None):
 @click.option("--arc-deg", type=float, default=120.0, show_default=True, help="Angle the arc spans.")
 @click.option("--distance", type=float, default=1.2, show_default=True, help="Camera-to-plume-axis distance, m.")
 @click.option("--camera-height", type=float, help="Camera height above the source, m (default: source at 90%).")
-@click.option("--source-radius", type=float, default=DEFAULT_SOURCE_RADIUS, show_default=True,
-              help="Radius of the smoke inflow, m.")
+@click.option("--source-radius", type=float, default=None,
+              help="Radius of the smoke inflow, m (default 0.025 m x the scene's length scale, docs/scale.md).")
 @click.option("--fps", type=float, help="Frame rate where the footage does not say (image folders).")
 @click.option("--metres-per-unit", type=float,
               help="Length of one unit of the imported file's world, in metres (--from-pinf, --from-nerf, "

@@ -6,7 +6,8 @@ per-pixel background B). For a camera the static scene is, in this order:
 
 1. an **input view with a clean plate** (``fluidnexus background``): the plate is B, and the static layer's
    Gaussians inside the volume (obstacles) are drawn with the smoke, so that they hide the smoke behind them;
-2. a **synthesised novel view** of a scene with plates: ``synth`` wrote a smoke layer over black, so B is black;
+2. a **synthesised novel view written as a smoke layer** (``synth`` on an input view with a plate records
+   ``provenance.smoke_layer``): B is black;
 3. any other camera (held-out, novel without video, orbit) of a run with a **static layer**: every static
    Gaussian, over the layer's background colour;
 4. the scene's known **backdrop colour** (PINF ``frame_bkg_color``) as a constant B;
@@ -69,8 +70,8 @@ class Backdrop:
 
     Attributes:
         plates: input view name -> its clean plate [H, W, 3] at the camera's full size.
-        smoke_layers: names of the views whose videos are smoke layers over black (a scene with plates: its
-            synthesised novel views).
+        smoke_layers: names of the views whose videos are smoke layers over black (``synth`` recorded
+            ``smoke_layer`` in their provenance).
         layer: the run's static layer (``fluidnexus.static.StaticLayer``, in ``channels``) or None.
         color: the scene's backdrop colour (3,) or None.
     """
@@ -116,7 +117,7 @@ def scene_backdrop(scene: Scene, channels: int, layer=None) -> Backdrop:
 
     plates = {name: read_plate(scene, name)[0] for name in scene.backgrounds}
     color = None if scene.backdrop_color is None else np.asarray(scene.backdrop_color, np.float32)
-    layers = frozenset(v.name for v in scene.with_role("novel") if v.video is not None) if plates else frozenset()
+    layers = frozenset(v.name for v in scene.views if v.video is not None and (v.provenance or {}).get("smoke_layer"))
     return Backdrop(channels, plates, layers, layer, color)
 
 

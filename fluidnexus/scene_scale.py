@@ -43,10 +43,15 @@ def box_size(extent) -> float:
     return float(np.prod(e) ** (1.0 / 3.0))
 
 
+def volume_factor(volume) -> float:
+    """The length-scale factor of a scene whose reconstruction box is ``volume`` (``scene.Volume``)."""
+    return _round3(box_size(np.subtract(volume.max, volume.min)) / box_size(SCALARFLOW_BOX))
+
+
 def scene_factor(scene: "Scene") -> float:
     """The length-scale factor of ``scene`` against ScalarFlow (module docstring)."""
     if scene.volume is not None:
-        return _round3(box_size(np.subtract(scene.volume.max, scene.volume.min)) / box_size(SCALARFLOW_BOX))
+        return volume_factor(scene.volume)
     if scene.source is not None:
         return _round3(scene.source.radius / SCALARFLOW_SOURCE_RADIUS)
     return 1.0

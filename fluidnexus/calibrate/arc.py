@@ -24,6 +24,7 @@ import numpy as np
 from ..camera import Camera
 from ..errors import InputError
 from ..scene import Source, Volume
+from ..scene_scale import SCALARFLOW_SOURCE_RADIUS, volume_factor
 
 
 @dataclass(frozen=True)
@@ -38,12 +39,13 @@ class ArcRig:
 
 
 def arc_rig(width: int, height: int, fov_deg: float, views: int = 5, arc_deg: float = 120.0,
-            distance: float = 1.2, camera_height: float | None = None, source_radius: float = 0.025,
+            distance: float = 1.2, camera_height: float | None = None, source_radius: float | None = None,
             input_name: str = "input") -> ArcRig:
-    """Build the single-video rig described in the module docstring."""
+    """Build the single-video rig described in the module docstring; without ``source_radius`` the inflow's
+    radius is ScalarFlow's 0.025 m times the rig volume's length scale (docs/scale.md)."""
     checks = (("--fov-deg", 0 < fov_deg < 180, fov_deg), ("--views", views >= 2, views),
               ("--arc-deg", 0 < arc_deg <= 360, arc_deg), ("--distance", distance > 0, distance),
-              ("--source-radius", source_radius > 0, source_radius))
+              ("--source-radius", source_radius is None or source_radius > 0, source_radius))
     for option, ok, value in checks:
         if not ok or (isinstance(value, float) and not math.isfinite(value)):
             raise InputError(None, option, f"impossible value {value!r}")
@@ -63,4 +65,5 @@ def arc_rig(width: int, height: int, fov_deg: float, views: int = 5, arc_deg: fl
     half = 0.5 * width * distance / fx
     volume = Volume((-half, 0.0, -half), (half, h + 0.5 * height * distance / fx, half))
     input_camera = cams.pop(input_name)
-    return ArcRig(input_camera, cams, azimuths, volume, Source((0.0, 0.0, 0.0), float(source_radius)))
+    radius = SCALARFLOW_SOURCE_RADIUS * volume_factor(volume) if source_radius is None else float(source_radius)
+    return ArcRig(input_camera, cams, azimuths, volume, Source((0.0, 0.0, 0.0), radius))

@@ -20,13 +20,13 @@ from ..atomic import read_json
 from ..camera import Camera
 from ..errors import InputError, require_finite
 from ..scene import GroundTruth, Scene, Source, Volume
+from ..scene_scale import SCALARFLOW_SOURCE_RADIUS, volume_factor
 from ..world_frame import UP_AXES, SourceFrame
 from .assemble import Recording
 
 SPLITS = ("train_videos", "test_videos", "val_videos")
 # fields of info.json kept verbatim in scene.json's extra["pinf"] so a scene converts back exactly
 KEPT_FIELDS = ("voxel_matrix", "voxel_scale", "near", "far", "render_center", "phi", "rot")
-DEFAULT_SOURCE_RADIUS = 0.025  # metres; ScalarFlow's inflow is about 4.5 cm wide in every view
 
 
 @dataclass(frozen=True)
@@ -143,9 +143,15 @@ def _backdrop(info: dict, path: Path) -> tuple[float, float, float] | None:
     return tuple(float(v) for v in c)
 
 
-def source_at_volume_foot(volume: Volume | None, radius: float = DEFAULT_SOURCE_RADIUS) -> Source | None:
-    """The inflow of a PINF capture: the bottom centre of its reconstruction box."""
-    return None if volume is None else Source(tuple(float(x) for x in volume.bottom_center), radius)
+def source_at_volume_foot(volume: Volume | None, radius: float | None = None) -> Source | None:
+    """The inflow of a PINF capture: the bottom centre of its reconstruction box, with ``radius`` metres or, without
+    one, ScalarFlow's inflow radius (0.025 m, about 4.5 cm wide in every view) times the box's length scale
+    (docs/scale.md: exactly 0.025 m on ScalarFlow)."""
+    if volume is None:
+        return None
+    if radius is None:
+        radius = SCALARFLOW_SOURCE_RADIUS * volume_factor(volume)
+    return Source(tuple(float(x) for x in volume.bottom_center), radius)
 
 
 def pinf_dict(scene: Scene, ground_truth: tuple[GroundTruth, ...]) -> dict:

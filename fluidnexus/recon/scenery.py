@@ -19,7 +19,8 @@ from ..backdrop import resize_image, to_channels
 from ..background.store import read_plate
 from ..obstacles import engine_obstacle, join
 from ..scene import Scene
-from ..static import STATIC_FILE, StaticConfig, find_obstacles, fit_static, load_static, merge_with_declared
+from ..static import (STATIC_FILE, StaticConfig, find_obstacles, fit_static, load_static, merge_with_declared,
+                      refine_balls)
 
 log = logging.getLogger("fluidnexus")
 
@@ -73,7 +74,9 @@ def fit_scenery(scene: Scene, declared: Scenery, cameras: dict, channels: int, i
                            StaticConfig(iterations=iterations, seed=seed))
         log.info("static layer: %d Gaussians fitted to %d plates (loss %.4g)", len(layer), len(cams),
                  layer.info["loss"])
-    found = merge_with_declared(find_obstacles(layer, cams, scene.volume.min, scene.volume.max), declared.obstacle)
+    found = refine_balls(find_obstacles(layer, cams, scene.volume.min, scene.volume.max), layer, cams, plates,
+                         confidences)
+    found = merge_with_declared(found, declared.obstacle)
     for body in found:
         log.info("obstacle found in the footage: centre %s, radius %.4g m%s", np.round(body.center, 4),
                  body.radius, " (sphere-like: a ball)" if body.sphere_like() else " (a carved grid)")

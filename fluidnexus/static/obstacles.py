@@ -14,17 +14,22 @@
    engine body is that ball (the carved part also holds what no camera sees behind the ball, e.g. under it when
    every camera looks down).
 
+4. **Balls from silhouettes**: given the plates, a sphere-like body's centre and radius are refitted to the
+   outlines of its silhouettes in every plate (``silhouettes``: the rays through them graze the ball), which the
+   layer's front-surface depths only approximate (:func:`refine_balls`).
+
 Declared obstacles (scene.json ``obstacles``) win: a found body that overlaps a declared one is dropped
 (:func:`merge_with_declared`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..scene_scale import box_size
 from .layer import StaticLayer, render_static
+from .silhouettes import fit_ball_to_rays, silhouette_rays
 
 
 @dataclass(frozen=True)
@@ -157,6 +162,25 @@ def find_obstacles(layer: StaticLayer, cameras, lo, hi, cfg: FinderConfig = Find
                                    float(spacing), mine, tuple(float(v) for v in center), radius, rms,
                                    float(body.sum()) * spacing ** 3))
     return sorted(found, key=lambda f: -f.volume)
+
+
+def refine_balls(found: list[FoundObstacle], layer: StaticLayer, cameras, plates, confidences,
+                 cfg: FinderConfig = FinderConfig()) -> list[FoundObstacle]:
+    """``found`` with every sphere-like body's centre and radius refitted to its silhouettes in ``plates`` ([V]
+    [H, W, C], with ``confidences`` [V] [H, W], seen by ``cameras``); a body with too few silhouette rays (under
+    ``cfg.min_points``) keeps the layer's sphere."""
+    out = []
+    for body in found:
+        if body.sphere_like(cfg.sphere_rms):
+            rays = [silhouette_rays(cam, plate, conf, layer.background, np.asarray(body.center), body.radius,
+                                    cfg.plain) for cam, plate, conf in zip(cameras, plates, confidences)]
+            origins = np.concatenate([r[0] for r in rays])
+            if len(origins) >= cfg.min_points:
+                center, radius, _ = fit_ball_to_rays(origins, np.concatenate([r[1] for r in rays]),
+                                                     np.asarray(body.center), body.radius)
+                body = replace(body, center=tuple(float(v) for v in center), radius=radius)
+        out.append(body)
+    return out
 
 
 def _signed_distance(body: np.ndarray, spacing: float) -> np.ndarray:
