@@ -33,7 +33,8 @@ def moving_scene(tmp_path_factory, ti_engine):
     """A y-up capture whose test04 camera swings 60 degrees round the smoke, its footage rendered from the
     cloud (PNG frames, exact but for 8-bit rounding); and a run holding that cloud at every frame."""
     tmp = tmp_path_factory.mktemp("moving")
-    path = write_capture(tmp / "cap", frames=FRAMES, size=SIZE, rot=None, videos=False)
+    path = write_capture(tmp / "cap", frames=FRAMES, size=SIZE, rot=None, videos=False,
+                         frame_bkg_color=[0.0, 0.0, 0.0])  # the footage is rendered over black
     tiny_video(tmp / "cap" / "train00.mp4", FRAMES, SIZE)
     poses = [ring_camera(200.0 + 20.0 * t, SIZE, "Y") for t in range(FRAMES)]
     write_frames(tmp / "cap" / "test04", [render_state(smoke_state(t), cam) for t, cam in enumerate(poses)])

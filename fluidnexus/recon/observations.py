@@ -21,14 +21,15 @@ class Observations:
         cameras: the views' cameras at the run resolution, [V].
         first: scene frame index of ``images[:, 0]``.
         images: float32 [V, T, H, W, C] in [0, 1]; memory V*T*H*W*C*4 bytes.
-        behind: what each view sees behind the smoke, at the run resolution [V] (``fluidnexus.backdrop``).
+        behind: what each view sees behind the smoke, at the run resolution [V] (``fluidnexus.backdrop``); empty:
+            black.
     """
 
     names: tuple[str, ...]
     cameras: tuple[Camera, ...]
     first: int
     images: np.ndarray
-    behind: tuple[Behind, ...]
+    behind: tuple[Behind, ...] = ()
 
     @property
     def num_frames(self) -> int:

@@ -5,6 +5,7 @@ from dataclasses import replace
 import numpy as np
 import torch
 
+from fluidnexus.backdrop import scene_backdrop
 from fluidnexus.camera import Camera
 from fluidnexus.engine import SourceDisk
 from fluidnexus.engine.emitter import disk_lattice
@@ -103,8 +104,10 @@ def test_source_finder_finds_a_sideways_jet(tmp_path):
     assert src.window == (2, None) and found.record["first_smoke_frame"] == 2
     assert 0.3 < src.speed < 1.5  # the front advances 0.03 m per frame at 30 fps: 0.9 m/s
     # the same jet as dark smoke on a white backdrop (scene.json backdrop_color) is found the same way
-    white = find_source(replace(scene, backdrop_color=(1.0, 1.0, 1.0)), replace(obs, images=1.0 - video), 0.01,
-                        0.01, Source((0.15, -0.3, 0.0), 0.02)).source
+    white_scene = replace(scene, backdrop_color=(1.0, 1.0, 1.0))
+    behind = tuple(scene_backdrop(white_scene, 1).behind(c, v.name) for v, c in zip(views, cameras))
+    white = find_source(white_scene, replace(obs, images=1.0 - video, behind=behind), 0.01, 0.01,
+                        Source((0.15, -0.3, 0.0), 0.02)).source
     assert white == src
     # a declared source keeps its direction; only its centre moves to the foot of the first frame's smoke
     declared = Source((0.3, 0.0, 0.0), 0.02, direction=tuple(direction / np.linalg.norm(direction)), speed=0.9)
