@@ -176,7 +176,7 @@ def evaluate(run: Run, lpips_weights=None) -> dict:
     mean = {k: _mean(getattr(s, k) for s in per_view.values()) for k in ("psnr", "ssim", "lpips")}
     resim_mean = {k: _mean(getattr(s, k) for s in resim_scores.values()) for k in ("psnr", "ssim", "lpips")}
     result = {"novel_view": {**mean, "per_view": {k: v.to_dict() for k, v in per_view.items()}},
-              "resimulation": resim_mean, "divergence": divergence(run, frames),
+              "resimulation": {**resim_mean, "per_view": {k: v.to_dict() for k, v in resim_scores.items()}}, "divergence": divergence(run, frames),
               "frames": [frames[0], frames[-1] + 1],
               "resolution": {"scale": run.resolution, "width": cam.width, "height": cam.height}}
     if run.info.get("kind") in PREDICTION_KINDS:
