@@ -58,12 +58,14 @@ def sample_fields(state, volume, voxel: float, h: float, frame=None):
                    "was imported from (its axes and unit; scene.json source_frame).")
 @arch_option
 def export(run_dir: Path, fmt: str, out: Path, voxel: float, frame_name: str, arch: str) -> None:
-    """One file per frame: 3DGS PLY (splat viewers), VTK ImageData .vti (ParaView) or raw .npz."""
+    """One file per frame: 3DGS PLY (splat viewers), VTK ImageData .vti (ParaView) or raw .npz; PLY also writes the
+    run's static layer (backdrop, obstacles) as static.ply when it has one."""
     from fluidnexus.export.npz import write_frame_npz
     from fluidnexus.export.ply import write_gaussians_ply
     from fluidnexus.export.vti import write_vti
     from fluidnexus.progress import track
     from fluidnexus.runs import open_run
+    from fluidnexus.static import STATIC_FILE, load_static
 
     if not voxel > 0:
         raise InputError(None, "--voxel", f"must be > 0, got {voxel}")
@@ -76,6 +78,10 @@ def export(run_dir: Path, fmt: str, out: Path, voxel: float, frame_name: str, ar
             raise InputError(run.scene_dir / "scene.json", "volume", f"--format {fmt} needs the scene's volume")
         start_engine(arch)
     h = run.config["solver"]["h"]
+    if fmt == "ply" and (run.root / STATIC_FILE).is_file():  # the static layer beside the frames
+        static = load_static(run.root).as_state(run.frames[0])
+        write_gaussians_ply(out / "static.ply", static if frame is None else frame.state_from_scene(static),
+                            viewer_frame=frame is None)
     for t in track(run.frames, f"export {fmt}"):
         state = run.state(t)
         path = out / f"{t:06d}.{fmt}"

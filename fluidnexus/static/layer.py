@@ -95,6 +95,15 @@ class StaticLayer:
     def __len__(self) -> int:
         return int(self.means.shape[0])
 
+    def as_state(self, frame: int):
+        """The layer as a ``FrameState`` holding only visual Gaussians (what the exporters write)."""
+        from ..state import FrameState
+
+        q = self.quats / np.linalg.norm(self.quats, axis=1, keepdims=True)
+        empty = np.zeros((0, 3), np.float32)
+        return FrameState(frame, empty, empty, self.means, self.colors, self.scales, q.astype(np.float32),
+                          self.opacities)
+
     def gaussians(self, dtype=torch.float32) -> engine.Gaussians:
         """The layer as a frozen ``engine.Gaussians`` (the renderer's ``static=``)."""
         return engine.Gaussians(*(torch.as_tensor(a, dtype=dtype) for a in
