@@ -7,7 +7,7 @@ folders, ``--arch`` and ``--resume`` itself.
 
 Layout of one scene's output folder (``DIR/scenes/NAME``)::
 
-    scene/            the scene folder (``calibrate``; synth and refine add the novel videos)
+    scene/            the scene folder (``calibrate``; background adds the plates, synth and refine the novel videos)
     run/              the reconstruction run (``recon``)
     eval.json         the scores (``eval`` of run/)
     predict/          the prediction run (``predict`` after run/)
@@ -23,7 +23,7 @@ from pathlib import Path
 import click
 
 PREPARE = "scene"  # the first step of every scene: make its scene folder (``calibrate``, or a copy of a folder)
-STEPS = ("synth", "refine", "recon", "eval", "predict", "diagnose")  # the order they run in
+STEPS = ("background", "synth", "refine", "recon", "eval", "predict", "diagnose")  # the order they run in
 NEEDS_RUN = ("eval", "predict")  # steps that read the reconstruction run
 SCENE_SOURCES = ("sample", "from_pinf", "scene")
 
@@ -36,6 +36,7 @@ _SOURCE_SET = {"from_pinf", "from_nerf", "from_colmap", "images", "video", "samp
 
 def command(step: str) -> click.Command:
     """The click command of a step (``scene`` is ``calibrate``)."""
+    from cli.background import background
     from cli.calibrate import calibrate
     from cli.diagnose import diagnose
     from cli.predict import predict
@@ -44,7 +45,7 @@ def command(step: str) -> click.Command:
     from cli.show import evaluate
     from cli.synth import synth
 
-    return {PREPARE: calibrate, "synth": synth, "refine": refine, "recon": recon, "eval": evaluate,
+    return {PREPARE: calibrate, "background": background, "synth": synth, "refine": refine, "recon": recon, "eval": evaluate,
             "predict": predict, "diagnose": diagnose}[step]
 
 
@@ -139,6 +140,8 @@ def step_args(step: str, source: dict, options: list[str], layout: Layout, arch:
     """The full argument list of ``step``'s command for one scene (resume decided from the files already there)."""
     if step == PREPARE:
         return source_args(source) + options + ["--out", str(layout.scene), "--overwrite"]
+    if step == "background":  # a re-run after a kill replaces what the killed step left
+        return [str(layout.scene), "--overwrite"] + options
     if step in ("synth", "refine"):
         return [str(layout.scene)] + _device(options, arch)
     if step == "recon":

@@ -107,6 +107,19 @@ def test_the_issue_example_reads(tmp_path):
                              "ground_truth": ["test02", "test04"]}
 
 
+def test_background_is_a_step_before_synth(tmp_path):
+    """Footage over a backdrop: the plates step runs first, with its own options, and replaces what a killed
+    attempt left (--overwrite)."""
+    from fluidnexus.batch.steps import Layout, step_args
+
+    text = GOOD + sample_scenes("four-view") + 'steps = ["recon", "background"]\nbackground = { resolution = 0.5 }\n'
+    scene = load_manifest(write_manifest(tmp_path, text)).scenes[0]
+    assert scene.steps == ("background", "recon")
+    layout = Layout(tmp_path / "out")
+    assert step_args("background", scene.source, scene.options["background"], layout, "cpu") == \
+        [str(layout.scene), "--overwrite", "--resolution", "0.5"]
+
+
 def test_options_of_a_step_not_run_are_checked_too(tmp_path):
     line = run_bad(tmp_path, GOOD + sample_scenes("four-view") + "predict = { anchr = false }\n")
     assert "scene[0] (four-view).predict.anchr" in line
