@@ -14,3 +14,14 @@ def ok(*args):
     result = invoke(*args)
     assert result.exit_code == 0, result.output + repr(result.exception)
     return result
+
+
+def assert_clean_failure(result, *needles):
+    """Require the project's bad-input contract: exit code 2, one ``error:`` line holding every needle, no
+    traceback."""
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+    lines = [line for line in result.output.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.output
+    for needle in needles:
+        assert needle in lines[0], (needle, lines[0])

@@ -9,19 +9,13 @@ import pytest
 from fluidnexus.background.store import read_image, read_plate
 from fluidnexus.errors import InputError
 from fluidnexus.scene import load_scene
-from tests.clirun import invoke, ok
+from tests.clirun import assert_clean_failure, invoke, ok
 
 from .scenes import HEIGHT, WIDTH, make_scene, psnr
 
 CLI_PSNR = 38.0  # dB through H.264 (crf 12); measured 41.6-46.1 dB (docs/background.md)
 
 
-def assert_clean_failure(result, *needles):
-    assert result.exit_code == 2, result.output
-    lines = [line for line in result.output.splitlines() if line.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: "), result.output
-    for needle in needles:
-        assert needle in lines[0], (needle, lines[0])
 
 
 def assert_nothing_written(root, scene_json_before):

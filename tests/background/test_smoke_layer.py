@@ -11,7 +11,7 @@ from fluidnexus.background.smoke_layer import MIN_CONTRAST, NoSmoke, smoke_layer
 from fluidnexus.background.store import read_image, read_plate
 from fluidnexus.scene import load_scene
 from fluidnexus.video import read_video, write_video
-from tests.clirun import invoke, ok
+from tests.clirun import assert_clean_failure, invoke, ok
 from tests.gen.test_gen_cli import tiny_scene
 
 from .scenes import backdrop, noise
@@ -133,12 +133,6 @@ def test_synth_writes_smoke_layers_over_black(tmp_path):
 
 
 # ---- calibrate --video --plate --------------------------------------------------------------------------
-def assert_clean_failure(result, *needles):
-    assert result.exit_code == 2, result.output
-    lines = [line for line in result.output.splitlines() if line.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: "), result.output
-    for needle in needles:
-        assert needle in lines[0], (needle, lines[0])
 
 
 def calibrate_video(video, out, *extra):

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from clirun import invoke, ok
+from clirun import assert_clean_failure, invoke, ok
 from fluidnexus.calibrate.pinf import read_pinf
 from fluidnexus.samples import sample_path
 from fluidnexus.scene import load_ground_truth, load_scene
@@ -18,12 +18,6 @@ TRAIN = "train00,train01,train02,train03,train04"
 SPHERE = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "pinf_sphere"
 
 
-def assert_clean_failure(result, *needles):
-    assert result.exit_code == 2, result.output
-    lines = [line for line in result.output.splitlines() if line.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: ") and "Traceback" not in result.output, result.output
-    for needle in needles:
-        assert needle in lines[0], (needle, lines[0])
 
 
 def check_upright_ring(scene_dir: Path, height: float = RING_HEIGHT):

@@ -6,6 +6,7 @@ import sys
 import pytest
 from click.testing import CliRunner
 
+from clirun import assert_clean_failure
 from cli.main import main
 from fluidnexus.samples import sample_path
 
@@ -14,13 +15,6 @@ def calibrate(*args):
     return CliRunner().invoke(main, ["calibrate", *[str(a) for a in args]])
 
 
-def assert_clean_failure(result, *needles):
-    assert result.exit_code == 2, result.output
-    assert "Traceback" not in result.output
-    lines = [l for l in result.output.splitlines() if l.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: "), result.output
-    for needle in needles:
-        assert needle in lines[0], (needle, lines[0])
 
 
 @pytest.fixture
