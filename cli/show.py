@@ -42,15 +42,14 @@ def _cameras(run, scene, which: str):
 
 def _backgrounds(choice: str, run):
     """(camera, view name or None) -> ``Behind`` for ``--background``; a FILE is read (and refused) at once."""
-    import numpy as np
-
-    from fluidnexus.backdrop import Behind, resize_image, run_backdrop, to_channels
+    from fluidnexus.backdrop import Behind, black_backdrop, resize_image, run_backdrop, to_channels
 
     if choice == "plates":
         backdrop = run_backdrop(run)
         return lambda camera, view: backdrop.behind(camera, view)
     if choice == "black":
-        return lambda camera, view: Behind(np.zeros(run.channels, np.float32))
+        black = black_backdrop(run.channels)
+        return lambda camera, view: black.behind(camera, view)
     from fluidnexus.background.store import read_image
 
     try:
@@ -125,10 +124,15 @@ def render(run_dir: Path, out: Path, which: str, orbit: int, compare: bool, png:
 @click.option("--json", "json_file", type=click.Path(path_type=Path, dir_okay=False), help="Write the scores here.")
 @click.option("--lpips-weights", type=click.Path(path_type=Path, file_okay=False),
               help="Folder with local LPIPS AlexNet weights (see docs/evaluation.md); LPIPS is skipped without it.")
+@click.option("--background", type=click.Choice(["plates", "black"]), default="plates", show_default=True,
+              help="What the renders composite the smoke over: what each camera saw behind it (the run's static "
+                   "layer, the scene's backdrop colour, or black), or black (to score smoke layers against footage "
+                   "on black).")
 @arch_option
-def evaluate(run_dir: Path, json_file: Path | None, lpips_weights: Path | None, arch: str) -> None:
+def evaluate(run_dir: Path, json_file: Path | None, lpips_weights: Path | None, background: str, arch: str) -> None:
     """Score a run against the scene's ground-truth videos: novel views, re-simulation, divergence."""
     from fluidnexus.atomic import write_json
+    from fluidnexus.backdrop import black_backdrop
     from fluidnexus.evaluation import evaluate as score
     from fluidnexus.runs import open_run
 
@@ -141,7 +145,7 @@ def evaluate(run_dir: Path, json_file: Path | None, lpips_weights: Path | None, 
     else:
         log.info("LPIPS skipped: no --lpips-weights folder given")
     start_engine(arch)
-    result = score(run, weights)
+    result = score(run, weights, black_backdrop(run.channels) if background == "black" else None)
     if json_file is not None:
         write_json(json_file, result)
     nv, rs, dv = result["novel_view"], result["resimulation"], result["divergence"]

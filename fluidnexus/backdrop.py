@@ -111,6 +111,11 @@ class Backdrop:
         return part if len(part) else None
 
 
+def black_backdrop(channels: int) -> Backdrop:
+    """Black behind every camera (``render --background black``, ``eval --background black``)."""
+    return Backdrop(channels, {})
+
+
 def scene_backdrop(scene: Scene, channels: int, layer=None) -> Backdrop:
     """The backdrop of ``scene`` (its plates and colour) with an optional static layer."""
     from .background.store import read_plate

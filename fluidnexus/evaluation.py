@@ -22,7 +22,7 @@ import torch
 
 from . import engine
 from .engine.tensors import torch_dtype
-from .backdrop import run_backdrop
+from .backdrop import Backdrop, run_backdrop
 from .errors import InputError
 from .frames import render_state
 from .metrics import psnr, ssim
@@ -110,7 +110,7 @@ def divergence(run: Run, frames: list[int], grid: int = DIVERGENCE_GRID) -> dict
 PREDICTION_KINDS = ("predict", "interact")
 
 
-def prediction(run: Run, lpips_weights=None) -> dict:
+def prediction(run: Run, lpips_weights=None, backdrop: Backdrop | None = None) -> dict:
     """Scores of a prediction run's frames on the input cameras' real future and on the ground-truth cameras."""
     scene = run.scene(check_videos=False)
     start = int(run.info["start_frame"])
@@ -120,7 +120,7 @@ def prediction(run: Run, lpips_weights=None) -> dict:
                                                           f"({scene.frame_count} frames)")
     inputs = [v for v in scene.with_role("input") if v.video is not None]
     states = [run.state(t) for t in frames]
-    backdrop = run_backdrop(run)
+    backdrop = backdrop or run_backdrop(run)
 
     def real(video, cam, rows):
         clip = read_video(scene.root / video, frames=slice(min(rows), max(rows) + 1), size=(cam.width, cam.height),
@@ -150,15 +150,16 @@ def prediction(run: Run, lpips_weights=None) -> dict:
             "repeat_last_input_view": summary(repeat_scores), "novel_views": summary(novel)}
 
 
-def evaluate(run: Run, lpips_weights=None) -> dict:
-    """Score a run: the JSON document of ``fluidnexus eval`` (keys in docs/evaluation.md)."""
+def evaluate(run: Run, lpips_weights=None, backdrop: Backdrop | None = None) -> dict:
+    """Score a run: the JSON document of ``fluidnexus eval`` (keys in docs/evaluation.md). The renders composite
+    the smoke over ``backdrop`` (default the run's own: ``fluidnexus.backdrop``)."""
     scene = run.scene(check_videos=False)
     truths = load_ground_truth(scene.root)
     if not truths:
         raise InputError(scene.root / "scene.json", "ground_truth", "the scene has no ground-truth view to score")
     frames = run.frames
     resim = resimulate(run, frames)
-    backdrop = run_backdrop(run)
+    backdrop = backdrop or run_backdrop(run)
     per_view, resim_scores = {}, {}
     with progress("evaluate", len(truths)) as bar:
         for gt in truths:
@@ -180,5 +181,5 @@ def evaluate(run: Run, lpips_weights=None) -> dict:
               "frames": [frames[0], frames[-1] + 1],
               "resolution": {"scale": run.resolution, "width": cam.width, "height": cam.height}}
     if run.info.get("kind") in PREDICTION_KINDS:
-        result["prediction"] = prediction(run, lpips_weights)
+        result["prediction"] = prediction(run, lpips_weights, backdrop)
     return result
