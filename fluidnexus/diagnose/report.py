@@ -10,7 +10,7 @@ from fluidnexus.atomic import write_json
 from .observe import observables
 from .plots import line_plot
 from .plume import AIR_SPACING
-from .search import MAX_P_VALUE, MIN_RELATIVE_GAIN, SPREAD_TOLERANCE
+from .search import FOOTAGE_HINTS, MAX_P_VALUE, MIN_RELATIVE_GAIN, SPREAD_TOLERANCE, indistinct
 
 MODEL_FORMAT = "fluidnexus-model/1"
 
@@ -52,9 +52,10 @@ def write_outputs(out_dir: Path, observed, bases: dict, structure: str, fits: di
     va = np.arange(validate[0] - a, validate[1] - a)
     base = bases[structure]
     chosen = fits[finding] if finding != "none" else base
+    unclear = indistinct(judged, spread)
     candidates = [{"effect": n, "params": _jsonable(fits[n].params.extensions[n]),
                    "validate_before": judged[n].before, "validate_after": judged[n].after,
-                   "selected": n == finding} for n in fits]
+                   "selected": n == finding, "within_spread": n in unclear} for n in fits]
     b_err = float(base.errors[va].mean())
     report = {"finding": {"effect": finding,
                           "params": _jsonable(chosen.params.extensions[finding]) if finding != "none" else {},
@@ -197,6 +198,10 @@ def _markdown(report, observed, bases, structure, fits, judged, finding, va, plo
     lines += ["", f"How far the training frames pin the base model: {spread[0]} fits of the base model alone "
               f"(no extension, from the base and control searches) come within {100 * SPREAD_TOLERANCE:.0f} % of "
               f"the control's training error; {same}"]
+    for name in (c["effect"] for c in report["candidates"] if c["within_spread"]):
+        lines += ["", f"This footage cannot tell `{name}` apart from the base model: its gain "
+                      f"({100 * judged[name].relative_gain:.1f} %) is within that spread. To tell them apart, "
+                      f"{FOOTAGE_HINTS[name]}."]
     lines += ["", f"Metric: {report['finding']['gain']['metric']} = the {_METRIC_TEXT}.", "", "## Plots", ""]
     lines += [f"- {title}: ![{title}]({name})" for name, title in plots["files"].items()]
     return "\n".join(lines) + "\n"

@@ -204,6 +204,26 @@ class Judgement:
         return self.relative_gain >= MIN_RELATIVE_GAIN and self.p_value < MAX_P_VALUE
 
 
+#: What footage would tell each extension apart from a base model refitted differently (report.md).
+FOOTAGE_HINTS = {
+    "buoyancy_decay": "film the source switching off (a burst): buoyancy that fades and a weaker buoyancy differ "
+                      "only once no new smoke comes",
+    "dissipation": "film the smoke after the source stops, or for longer: fading and a weaker inflow differ once "
+                   "the inflow is gone",
+    "wind": "film from a second direction at right angles (a drift along a camera's axis barely shows in it), or "
+            "for longer",
+    "vorticity": "film closer or at a higher resolution: confinement shows in the small eddies",
+    "viscosity": "film closer or at a higher resolution: viscosity shows in the eddies it damps",
+    "swirl": "film the plume from above or below, where the rotation about its axis shows",
+}
+
+
+def indistinct(judged: dict, spread: tuple[int, float]) -> list[str]:
+    """The candidates whose validation gain (> 0) is no larger than the search spread's: the footage cannot tell
+    them from a base model that stopped elsewhere (``search_spread``)."""
+    return [name for name, j in judged.items() if 0.0 < j.relative_gain <= spread[1]]
+
+
 def judge(base_errors: np.ndarray, cand_errors: np.ndarray) -> Judgement:
     """Step 4: compare per-frame validation errors (paired, one-sided Wilcoxon signed-rank: after < before)."""
     before, after = float(np.mean(base_errors)), float(np.mean(cand_errors))

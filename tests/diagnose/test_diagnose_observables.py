@@ -61,3 +61,16 @@ def test_search_spread_counts_base_fits_the_training_frames_cannot_tell_apart():
     assert count == 2 and drop == pytest.approx(0.2)
     # a control better on training than every scored base fit: nothing to compare, no spread
     assert search_spread(fitter, Fit(PlumeParams(), None, None, errors(0.05, 0.5)), validate) == (0, 0.0)
+
+
+def test_gains_within_the_search_spread_are_named_with_the_footage_that_would_tell():
+    """A candidate's gain no larger than the spread of equally good base fits is not told apart from the base
+    model; the report says what footage would tell it (one hint per extension)."""
+    from fluidnexus.diagnose.plume import EXTENSIONS
+    from fluidnexus.diagnose.search import FOOTAGE_HINTS, Judgement, indistinct
+
+    judged = {"wind": Judgement(1.0, 0.6, 0.40, 1e-6), "dissipation": Judgement(1.0, 0.85, 0.15, 1e-3),
+              "swirl": Judgement(1.0, 1.1, -0.10, 0.9)}
+    assert indistinct(judged, (5, 0.2)) == ["dissipation"]
+    assert indistinct(judged, (5, 0.0)) == []
+    assert set(FOOTAGE_HINTS) == set(EXTENSIONS)
