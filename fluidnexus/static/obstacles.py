@@ -14,9 +14,9 @@
    engine body is that ball (the carved part also holds what no camera sees behind the ball, e.g. under it when
    every camera looks down).
 
-4. **Balls from silhouettes**: given the plates, a sphere-like body's centre and radius are refitted to the
-   outlines of its silhouettes in every plate (``silhouettes``: the rays through them graze the ball), which the
-   layer's front-surface depths only approximate (:func:`refine_balls`).
+4. **Balls from silhouettes**: given the plates, a body whose silhouettes in the plates outline one ball (the rays
+   through the outlines graze it, ``silhouettes``) becomes that ball, which the layer's front-surface depths only
+   approximate; parts of it found separately are dropped (:func:`refine_balls`).
 
 Declared obstacles (scene.json ``obstacles``) win: a found body that overlaps a declared one is dropped
 (:func:`merge_with_declared`).
@@ -166,19 +166,24 @@ def find_obstacles(layer: StaticLayer, cameras, lo, hi, cfg: FinderConfig = Find
 
 def refine_balls(found: list[FoundObstacle], layer: StaticLayer, cameras, plates, confidences,
                  cfg: FinderConfig = FinderConfig()) -> list[FoundObstacle]:
-    """``found`` with every sphere-like body's centre and radius refitted to its silhouettes in ``plates`` ([V]
-    [H, W, C], with ``confidences`` [V] [H, W], seen by ``cameras``); a body with too few silhouette rays (under
-    ``cfg.min_points``) keeps the layer's sphere."""
+    """``found`` with every body that the plates show as a ball refitted to its silhouettes (``plates`` [V]
+    [H, W, C], ``confidences`` [V] [H, W], seen by ``cameras``): where the rays through the outlines around the
+    body's projected centre graze one ball within ``cfg.sphere_rms`` of its radius (rms), the body becomes that ball
+    (its ``rms`` the silhouettes' residual, so it is sphere-like); other bodies keep the layer's sphere and grid.
+    Bodies whose centre lies inside an earlier (larger) refitted ball are parts of it and are dropped."""
     out = []
     for body in found:
-        if body.sphere_like(cfg.sphere_rms):
-            rays = [silhouette_rays(cam, plate, conf, layer.background, np.asarray(body.center), body.radius,
-                                    cfg.plain) for cam, plate, conf in zip(cameras, plates, confidences)]
-            origins = np.concatenate([r[0] for r in rays])
-            if len(origins) >= cfg.min_points:
-                center, radius, _ = fit_ball_to_rays(origins, np.concatenate([r[1] for r in rays]),
-                                                     np.asarray(body.center), body.radius)
-                body = replace(body, center=tuple(float(v) for v in center), radius=radius)
+        if any(b.sphere_like(cfg.sphere_rms) and np.linalg.norm(np.subtract(body.center, b.center)) < b.radius
+               for b in out):
+            continue
+        rays = [silhouette_rays(cam, plate, conf, layer.background, np.asarray(body.center), body.radius,
+                                cfg.plain) for cam, plate, conf in zip(cameras, plates, confidences)]
+        origins = np.concatenate([r[0] for r in rays])
+        if len(origins) >= cfg.min_points:
+            center, radius, rms = fit_ball_to_rays(origins, np.concatenate([r[1] for r in rays]),
+                                                   np.asarray(body.center), body.radius)
+            if rms <= cfg.sphere_rms * radius:
+                body = replace(body, center=tuple(float(v) for v in center), radius=radius, rms=rms)
         out.append(body)
     return out
 
