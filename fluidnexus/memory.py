@@ -134,7 +134,7 @@ def image_bytes(width: int, height: int, channels: int, views: int) -> int:
 
 # ---- per command ----------------------------------------------------------------------------------------
 def recon_estimate(scene, setup, frames: tuple[int, int], n_seeds: int) -> Estimate:
-    """A reconstruction's peak: frame cache, hull, particle capacities over the run, render buffers.
+    """A reconstruction's peak: frame cache, hull, particle capacities over the run, render buffers, plates.
 
     ``n_seeds`` is the number of visual particles the first frame's hull seeds (0 before the hull is known).
     """
@@ -150,6 +150,10 @@ def recon_estimate(scene, setup, frames: tuple[int, int], n_seeds: int) -> Estim
                 "--frames or --resolution")
         est.add("render buffers", image_bytes(cam.width, cam.height, cfg.channels, cfg.views_per_iter),
                 "--resolution")
+    if scene.backgrounds:  # plates held at the videos' size (and their run-size copies), static-layer Gaussians
+        full = [v.camera for v in views if v.name in scene.backgrounds]
+        est.add("plates", sum(c.width * c.height for c in full) * 4 * F32 + len(full) * 3 * image_bytes(
+                cam.width, cam.height, cfg.channels, 1), "--resolution")
     if scene.volume is not None:
         voxels = 1
         for axis in hull_grid(scene.volume, cfg.visual_spacing):

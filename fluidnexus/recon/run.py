@@ -157,7 +157,7 @@ def reconstruct(scene: Scene, out: str | Path, setup: RunSetup, resume: bool = F
         log.info("the scene has obstacles: the look-ahead term is off (a step with an obstacle has no gradient)")
     setup = replace(setup, config=replace(cfg, frames=frames, lambda_next=0.0 if obstacle else cfg.lambda_next))
     cfg = setup.config
-    backdrop = replace(scene_backdrop(scene, cfg.channels), layer=scenery.layer)
+    backdrop = scene_backdrop(scene, cfg.channels, scenery.layer)
     obs = load_observations(scene, frames, cfg.resolution, cfg.channels, backdrop)
     found, seeds = locate_smoke(scene, obs, cfg, obstacle)
     source = found.source
