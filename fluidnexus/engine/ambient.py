@@ -204,13 +204,15 @@ class AirDomain:
             raise ValueError("capacity needs the scene box (lo, hi)")
         return self._bound(self.lo, self.hi, smoke)
 
-    def reach(self, smoke_p: np.ndarray, rise: float) -> int:
-        """Particles the domain holds once the smoke at ``smoke_p`` [M, 3] m has risen by ``rise`` m: the
-        region's (its top raised by ``rise``, within the scene box) and its shell's lattice sites, 25 % slack for
-        compression, plus the smoke. An estimate: a plume that also widens holds more."""
+    def reach(self, smoke_p: np.ndarray, distance: float) -> int:
+        """Particles the domain holds once the smoke at ``smoke_p`` [M, 3] m has moved up to ``distance`` m
+        further: the lattice sites of the region grown by ``distance`` upward and sideways (within the scene box)
+        and of its shell, 25 % slack for compression, plus the smoke."""
         lo, hi = self.region(smoke_p)
-        hi[1] += max(float(rise), 0.0)
-        return self._bound(*self.outer(lo, self._clip(hi)), len(smoke_p))
+        d = max(float(distance), 0.0)
+        lo[[0, 2]] -= d
+        hi += d
+        return self._bound(*self.outer(self._clip(lo), self._clip(hi)), len(smoke_p))
 
     def in_pipe(self, p: np.ndarray) -> np.ndarray:
         """[N] bool: inside the inlet pipe (the source disk's cylinder below the source plane)."""

@@ -236,6 +236,7 @@ class PBFSimulator:
         self._grad_fields = [self.p, self.u, self.u_out, self.force, self.rho_pre, self.x, self.rho, self.gsq,
                              self.lam, self.gsum, self.dp]
         self._workspaces: dict = {}
+        self.theta = None
         self.set_model(self.model)
         self._tape: list = []
         self.token = None
@@ -257,7 +258,7 @@ class PBFSimulator:
         self.model = model
         self._offsets = model.offsets()
         size = max(1, len(model.param_names()))
-        if getattr(self, "theta", None) is None or self.theta.shape[0] != size:
+        if self.theta is None or self.theta.shape[0] != size:
             self.theta = ti.field(real(), shape=size, needs_grad=True)
         self.load_theta(model.to_vector())
         for term in model.terms:

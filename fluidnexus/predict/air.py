@@ -20,14 +20,14 @@ import numpy as np
 import torch
 
 from .. import engine
-from ..engine import AirDomain, AmbientAir
+from ..engine import AirDomain, AmbientAir, ModelConfig
 from ..errors import InputError
 from ..recon.initial import emit
 from ..recon.smoke import Smoke
 from ..scene import UP
 
-#: The smoke's upward speed the air estimate assumes: this quantile of its particles' vertical velocities.
-RISE_QUANTILE = 0.99
+#: The smoke's speed the air estimate starts from: this quantile of its particles' speeds.
+SPEED_QUANTILE = 0.99
 
 
 def air_domain(ctx, air: AmbientAir, obstacle=None) -> AirDomain:
@@ -41,15 +41,22 @@ def air_domain(ctx, air: AmbientAir, obstacle=None) -> AirDomain:
     return AirDomain(air, s.h, s.rest_density, s.dt, ctx.source.center, ctx.source.radius, lo, hi, obstacle)
 
 
-def air_capacity(smoke: Smoke, frames: int, ctx, air: AmbientAir) -> int:
-    """Estimated most particles, smoke and air, over ``frames`` frames in air from ``smoke``: the region once the
-    smoke's top has risen at the faster of the inflow and the smoke's ``RISE_QUANTILE`` upward speed
-    (``AirDomain.reach``); the workspace grows beyond it if the plume needs more."""
+def air_capacity(smoke: Smoke, frames: int, ctx, model: ModelConfig) -> int:
+    """Estimated most particles, smoke and air, over ``frames`` frames of ``model`` (the gas in ambient air) from
+    ``smoke``: the region grown by the distance ``v T + a T^2 / 2`` (``AirDomain.reach``) that smoke covers in
+    T = ``frames`` dt from the faster of the inflow and its ``SPEED_QUANTILE`` speed (plus the wind's) under the
+    model's accelerations (buoyancy |alpha g| and the wind term; the air's drag is left out, so the region rarely
+    gets there). The workspace grows beyond it if the plume needs more."""
     p = smoke.p.detach().cpu().numpy().astype(np.float64)
-    speed = air.inflow
+    speed = model.air.inflow
     if len(p):
-        speed = max(speed, float(np.quantile(smoke.u[:, 1].detach().cpu().numpy(), RISE_QUANTILE)))
-    return air_domain(ctx, air).reach(p, frames * ctx.solver.dt * speed)
+        speed = max(speed, float(np.quantile(torch.linalg.norm(smoke.u, dim=1).detach().cpu().numpy(),
+                                             SPEED_QUANTILE)))
+    accel = sum(abs(t.alpha) * float(np.linalg.norm(t.gravity)) if t.kind == "buoyancy" else
+                float(np.linalg.norm(t.accel)) for t in model.terms if t.kind in ("buoyancy", "wind"))
+    T = frames * ctx.solver.dt
+    distance = (speed + float(np.linalg.norm(model.air.wind))) * T + 0.5 * accel * T**2
+    return air_domain(ctx, model.air).reach(p, distance)
 
 
 def air_rollout(start: Smoke, frames: int, ws, ctx, look) -> Iterator[Smoke]:

@@ -111,7 +111,7 @@ def capacities(smoke: Smoke, frames: int, ctx: RunContext, model: ModelConfig) -
     ``air.air_capacity``)."""
     phys = smoke.p.shape[0] + (frames + 1) * physical_source(ctx.source, ctx.config).count + 64
     vis = smoke.x.shape[0] + (frames + 1) * visual_source(ctx.source, ctx.config).count + 64
-    return (phys if model.air is None else air_capacity(smoke, frames, ctx, model.air)), phys, vis
+    return (phys if model.air is None else air_capacity(smoke, frames, ctx, model)), phys, vis
 
 
 def workspace_for(smoke: Smoke, frames: int, ctx: RunContext, model: ModelConfig) -> Workspace:

@@ -55,11 +55,11 @@ class Workspace:
 
     def reserve(self, physical: int) -> None:
         """Room for ``physical`` particles (the gas in ambient air grows with its plume): when the simulator is
-        smaller, a new one and new field queries 1.25 x larger (model and obstacle kept; the old fields stay
-        allocated)."""
+        smaller, a new one and new field queries 1.5 x larger (model and obstacle kept; Taichi keeps the old
+        fields allocated)."""
         if physical <= self.sim.capacity:
             return
-        capacity = int(1.25 * physical)
+        capacity = int(1.5 * physical)
         log.info("workspace: %d physical particles exceed the capacity %d; grown to %d", physical, self.sim.capacity,
                  capacity)
         self._allocate(capacity, self.advect_query.query_capacity)
