@@ -30,6 +30,10 @@ from ..scene import UP
 SPEED_QUANTILE = 0.99
 
 
+def _numpy(t: torch.Tensor) -> np.ndarray:
+    return t.detach().cpu().numpy().astype(np.float64)
+
+
 def air_domain(ctx, air: AmbientAir, obstacle=None) -> AirDomain:
     """The air around the source of ``ctx`` (``rollout.RunContext``), inside the scene's volume if it has one, with
     the run's solver (its rest density sets the air lattice); no air inside ``obstacle``."""
@@ -47,11 +51,10 @@ def air_capacity(smoke: Smoke, frames: int, ctx, model: ModelConfig) -> int:
     T = ``frames`` dt from the faster of the inflow and its ``SPEED_QUANTILE`` speed (plus the wind's) under the
     model's accelerations (buoyancy |alpha g| and the wind term; the air's drag is left out, so the region rarely
     gets there). The workspace grows beyond it if the plume needs more."""
-    p = smoke.p.detach().cpu().numpy().astype(np.float64)
+    p = _numpy(smoke.p)
     speed = model.air.inflow
     if len(p):
-        speed = max(speed, float(np.quantile(torch.linalg.norm(smoke.u, dim=1).detach().cpu().numpy(),
-                                             SPEED_QUANTILE)))
+        speed = max(speed, float(np.quantile(np.linalg.norm(_numpy(smoke.u), axis=1), SPEED_QUANTILE)))
     accel = sum(abs(t.alpha) * float(np.linalg.norm(t.gravity)) if t.kind == "buoyancy" else
                 float(np.linalg.norm(t.accel)) for t in model.terms if t.kind in ("buoyancy", "wind"))
     T = frames * ctx.solver.dt
@@ -66,11 +69,7 @@ def air_rollout(start: Smoke, frames: int, ws, ctx, look) -> Iterator[Smoke]:
     domain = air_domain(ctx, air, ws.obstacle)
     wind = np.asarray(air.wind, np.float64)
     shift = torch.as_tensor(wind * ws.dt, dtype=ws.dtype)
-
-    def array(t: torch.Tensor) -> np.ndarray:
-        return t.detach().cpu().numpy().astype(np.float64)
-
-    state = domain.initial(array(start.p), array(start.u) - wind, array(start.age))  # velocities relative to air
+    state = domain.initial(_numpy(start.p), _numpy(start.u) - wind, _numpy(start.age))  # velocities relative to air
     smoke = start
     for _ in range(frames):
         t = smoke.frame + 1

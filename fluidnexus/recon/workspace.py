@@ -1,4 +1,5 @@
-"""Engine objects a reconstruction reuses every iteration, sized once for the whole run."""
+"""Engine objects a reconstruction reuses every iteration, sized once for the whole run (a rollout in ambient air
+grows the physical side when its plume needs more, :meth:`Workspace.reserve`)."""
 from __future__ import annotations
 
 import logging
