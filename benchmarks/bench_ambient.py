@@ -1,6 +1,7 @@
 """Benchmark of the gas in ambient air against the paper's gas at the same smoke particle count.
 
 Usage: python benchmarks/bench_ambient.py [--arch cpu|cuda] [--steps 48] [--spacing 0.03] [--repeats 2]
+       python benchmarks/bench_ambient.py --run RUN [--steps 10] [--arch cpu|cuda]
 
 Both plumes rise from a 5 cm source at 0.25 m/s for ``--steps`` steps of 1/30 s (4 solver iterations, the
 solver's H and rho0 follow ``--spacing`` with diagnose's ratios; buoyancy alpha -0.15, XSPH c 0.4 in both):
@@ -10,6 +11,10 @@ solver's H and rho0 follow ``--spacing`` with diagnose's ratios; buoyancy alpha 
 Prints wall and CPU (process) ms per step (mean over the rollout, best of the repeats; the first rollout of each is
 a warm-up that compiles), the smoke and total particle counts at the last step, and the ratios, measured in the
 same run. On a shared machine the CPU time is the steadier figure.
+
+With ``--run``: predict's physics rollout (``predict.rollout``: emission, step, advection of the Gaussians) from the
+run's last frame with the same terms in both structures and the run's solver, the ambient-air one around the run's
+reconstructed smoke (``predict/air.py``); the first frame of each is a warm-up that compiles.
 """
 import argparse
 import os
@@ -66,14 +71,43 @@ def run_gas(solver, steps: int, spacing: float) -> tuple[float, float, int, int]
     return (time.perf_counter() - t) / steps * 1000.0, (time.process_time() - c) / steps * 1000.0, parts.n, parts.n
 
 
+def run_predict(run_dir: Path, steps: int) -> None:
+    from fluidnexus.engine.tensors import torch_dtype
+    from fluidnexus.predict.rollout import RunContext, rollout, workspace_for
+    from fluidnexus.recon.smoke import Smoke
+    from fluidnexus.runs import open_run
+
+    run = open_run(run_dir)
+    ctx = RunContext.of(run)
+    start = Smoke.from_state(run.state(run.frames[-1]), torch_dtype())
+    print(f"load average {os.getloadavg()[0]:.1f}; {run_dir} frame {start.frame}: {start.p.shape[0]} physical "
+          f"particles, {start.x.shape[0]} Gaussians; H {ctx.solver.h} m, {ctx.solver.iterations} iterations; "
+          f"{steps} steps after a warm-up")
+    print("| structure | wall ms per step | CPU ms per step | smoke particles at the end | all particles at the end |")
+    print("|---|---|---|---|---|")
+    for air in (None, engine.AmbientAir(inflow=INFLOW)):
+        ws = workspace_for(start, steps + 1, ctx, engine.ModelConfig(_terms(), air))
+        frames = rollout(start, steps + 1, ws, ctx)
+        next(frames)
+        t, c = time.perf_counter(), time.process_time()
+        for smoke in frames:
+            pass
+        wall, cpu = (time.perf_counter() - t) / steps * 1000.0, (time.process_time() - c) / steps * 1000.0
+        print(f"| {'paper_gas' if air is None else air.name} | {wall:.1f} | {cpu:.1f} | {smoke.p.shape[0]} | {ws.sim.n} |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--arch", default="cpu", choices=["cpu", "cuda"])
     ap.add_argument("--steps", type=int, default=48)
     ap.add_argument("--spacing", type=float, default=0.03)
     ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--run", type=Path, help="time predict's rollout from this run's last frame instead")
     args = ap.parse_args()
     engine.init(arch=args.arch)
+    if args.run is not None:
+        run_predict(args.run, args.steps)
+        return
     solver = _solver(args.spacing)
     air = [run_air(solver, args.steps) for _ in range(args.repeats + 1)][1:]
     rest = air[0][4]

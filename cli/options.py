@@ -32,8 +32,12 @@ def start_engine(arch: str) -> str:
     return resolved
 
 
-def load_model_file(path):
-    """The engine model of a model.json (``fluidnexus diagnose`` writes one), or None without a path."""
+def load_model_file(path, ambient_air: bool):
+    """The engine model of a model.json (``fluidnexus diagnose`` writes one), or None without a path.
+
+    ``ambient_air``: whether the command simulates the gas in ambient air (predict, interact); recon does not
+    (docs/simulator.md, "Model structures") and refuses such a model.
+    """
     if path is None:
         return None
     from fluidnexus.atomic import read_json
@@ -43,7 +47,8 @@ def load_model_file(path):
         model = ModelConfig.from_dict(read_json(path, "model file").get("model", {}))
     except (OSError, ValueError, TypeError, KeyError) as err:
         raise InputError(path, "model", str(err)) from None
-    if model.air is not None:  # docs/simulator.md, "Model structures"
-        raise InputError(path, "model.structure", "recon, predict and interact run the paper's gas; this model is "
-                         "the gas in ambient air (ambient_air), which only diagnose simulates so far")
+    if model.air is not None and not ambient_air:
+        raise InputError(path, "model.structure", "recon fits the paper's gas; this model is the gas in ambient air "
+                         "(ambient_air), which predict and interact simulate: reconstruct without it and pass it "
+                         "to predict or interact")
     return model

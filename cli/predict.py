@@ -76,7 +76,7 @@ def future_context(run, first, model_file, calibrate: bool, window: int):
     from fluidnexus.predict.session import start_frame
 
     ctx = RunContext.of(run)
-    model = load_model_file(model_file)
+    model = load_model_file(model_file, ambient_air=True)
     notes = {"model_file": None if model_file is None else str(Path(model_file).resolve()), "calibration": None}
     if model is not None:
         ctx = dataclasses.replace(ctx, model=model)

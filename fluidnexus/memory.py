@@ -174,19 +174,22 @@ def video_estimate(command: str, frames: int, width: int, height: int, videos: i
     return est
 
 
-def future_estimate(command: str, start, frames: int, ctx, cameras, videos: bool) -> Estimate:
-    """predict / interact: the rollout's workspace, the ``frames`` states it keeps, and with ``videos`` the
-    rough, known, anchored and refined video of every camera (float32, at the run's resolution)."""
-    from .recon.initial import physical_source, visual_source
+def future_estimate(command: str, start, frames: int, ctx, model, cameras, videos: bool) -> Estimate:
+    """predict / interact: the rollout's workspace (with the gas in ambient air, its air: the region the smoke
+    reaches, on the rest density's lattice), the ``frames`` states it keeps, and with ``videos`` the rough, known,
+    anchored and refined video of every camera (float32, at the run's resolution)."""
+    from .predict.rollout import capacities
 
-    n_phys, n_vis = start.p.shape[0], start.x.shape[0]
-    phys = n_phys + (frames + 1) * physical_source(ctx.source, ctx.config).count + 64
-    vis = n_vis + (frames + 1) * visual_source(ctx.source, ctx.config).count + 64
+    phys, smoke, vis = capacities(start, frames, ctx, model)
     channels = ctx.config.channels
     est = Estimate(command)
-    est.add("physical particles", physical_bytes(phys, ctx.solver.iterations), "--frames")
+    if model.air is None:
+        est.add("physical particles", physical_bytes(phys, ctx.solver.iterations), "--frames")
+    else:
+        est.add("smoke and air particles", physical_bytes(phys, ctx.solver.iterations),
+                "--frames or the model's structure margin")
     est.add("visual particles", visual_bytes(vis, channels), "--frames")
-    est.add("rollout states", frames * F32 * (7 * phys + (11 + channels) * vis), "--frames")
+    est.add("rollout states", frames * F32 * (7 * smoke + (11 + channels) * vis), "--frames")
     if videos:
         pixels = sum(cam.width * cam.height for cam in cameras)
         est.add("videos", 4 * (frames + 1) * pixels * channels * F32, "--frames or --no-refit")

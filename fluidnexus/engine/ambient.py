@@ -30,7 +30,7 @@ from typing import ClassVar
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .sph import lattice_density
+from .sph import lattice_density, point_density
 
 #: The model structures: the paper's gas in empty space, or the gas in ambient air.
 STRUCTURES = ("paper_gas", "ambient_air")
@@ -41,6 +41,11 @@ SHELL = 2
 STRAY = 1.0
 #: A shell site is vacant when no particle lies within this many lattice spacings of it.
 VACANT = 0.6
+#: At the start, a vacant site gets air only where the smoke's own density is below this fraction of the rest
+#: density: smoke at any positions (a reconstructed state) leaves sites between its particles further than
+#: ``VACANT`` spacings from any, and air there would compress it (to 1.45 rest density on a ScalarFlow state,
+#: 1.13 with this test).
+FILL = 0.5
 
 
 @dataclass(frozen=True)
@@ -140,13 +145,15 @@ class AirDomain:
         source_center: (x, y, z) of the source disk [m]; source_radius: its radius [m].
         lo, hi: optional scene box [m]; the air region never leaves it (its top is then the outlet), except the
             inlet pipe and its shell, which may reach under the box's floor.
+        obstacle: optional rigid body (``engine.obstacle``, with ``distance(points)``); no air is placed inside it.
     """
 
     def __init__(self, air: AmbientAir, h: float, rest_density: float, dt: float, source_center, source_radius: float,
-                 lo=None, hi=None):
-        self.air, self.dt = air, float(dt)
+                 lo=None, hi=None, obstacle=None):
+        self.air, self.dt, self.h, self.rest_density = air, float(dt), float(h), float(rest_density)
         self.center, self.radius = np.asarray(source_center, np.float64), float(source_radius)
         self.spacing = rest_spacing(h, rest_density)
+        self.obstacle = obstacle
         self.lo = None if lo is None else np.asarray(lo, np.float64).copy()
         if self.lo is not None:  # the inlet pipe and its shell stay, also under the scene box's floor
             self.lo[1] = min(self.lo[1], self.center[1] - air.below * self.radius - SHELL * self.spacing)
@@ -177,19 +184,35 @@ class AirDomain:
         d = SHELL * self.spacing
         return self._clip(lo - d), self._clip(hi + d)
 
+    def _axes(self, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
+        s, c = self.spacing, self.center
+        return [c[a] + s * np.arange(np.ceil((lo[a] - c[a]) / s - 1e-9), np.floor((hi[a] - c[a]) / s + 1e-9) + 1)
+                for a in range(3)]
+
     def sites(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """Lattice sites [K, 3] (spacing ``self.spacing``, anchored at the source centre) inside [lo, hi]."""
-        s, c = self.spacing, self.center
-        axes = [c[a] + s * np.arange(np.ceil((lo[a] - c[a]) / s - 1e-9), np.floor((hi[a] - c[a]) / s + 1e-9) + 1)
-                for a in range(3)]
-        return np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+        return np.stack(np.meshgrid(*self._axes(lo, hi), indexing="ij"), -1).reshape(-1, 3)
+
+    def _bound(self, lo: np.ndarray, hi: np.ndarray, smoke: int) -> int:
+        """The lattice sites of [lo, hi] with 25 % slack for compression, plus ``smoke`` particles."""
+        return int(1.25 * np.prod([len(axis) for axis in self._axes(lo, hi)])) + int(smoke) + 64
 
     def capacity(self, smoke: int = 0) -> int:
         """Most particles the domain can hold inside the scene box (needs ``lo``, ``hi``), 25 % slack for
         compression, plus ``smoke`` particles."""
         if self.lo is None:
             raise ValueError("capacity needs the scene box (lo, hi)")
-        return int(1.25 * len(self.sites(self.lo, self.hi))) + int(smoke) + 64
+        return self._bound(self.lo, self.hi, smoke)
+
+    def reach(self, smoke_p: np.ndarray, distance: float) -> int:
+        """Particles the domain holds once the smoke at ``smoke_p`` [M, 3] m has moved up to ``distance`` m
+        further: the lattice sites of the region grown by ``distance`` upward and sideways (within the scene box)
+        and of its shell, 25 % slack for compression, plus the smoke."""
+        lo, hi = self.region(smoke_p)
+        d = max(float(distance), 0.0)
+        lo[[0, 2]] -= d
+        hi += d
+        return self._bound(*self.outer(self._clip(lo), self._clip(hi)), len(smoke_p))
 
     def in_pipe(self, p: np.ndarray) -> np.ndarray:
         """[N] bool: inside the inlet pipe (the source disk's cylinder below the source plane)."""
@@ -198,16 +221,21 @@ class AirDomain:
 
     # ---------------------------------------------------------------- state
     def initial(self, smoke_p=None, smoke_u=None, smoke_age=None) -> AirState:
-        """Smoke particles (default none) surrounded by air at rest on every lattice site of the region and its
-        shell that no smoke particle occupies."""
+        """Smoke particles (default none; any positions) surrounded by air at rest on every lattice site of the
+        region and its shell that the smoke does not occupy (no smoke particle within ``VACANT`` spacings, smoke
+        density below ``FILL`` x the rest density)."""
         sp = np.zeros((0, 3)) if smoke_p is None else np.asarray(smoke_p, np.float64).reshape(-1, 3)
         su = np.zeros_like(sp) if smoke_u is None else np.asarray(smoke_u, np.float64).reshape(-1, 3)
         sa = np.zeros(len(sp)) if smoke_age is None else np.asarray(smoke_age, np.float64).ravel()
         state = AirState(sp, su, sa, np.ones(len(sp)))
         sites = self.sites(*self.outer(*self.region(sp)))
+        sites = sites[point_density(sites, sp, self.h) < FILL * self.rest_density]
         return self._fill(state, sites)
 
     def _fill(self, state: AirState, sites: np.ndarray) -> AirState:
+        """``state`` plus air at rest on the vacant ``sites`` outside the obstacle."""
+        if self.obstacle is not None and len(sites):
+            sites = sites[self.obstacle.distance(sites) > 0]
         if len(state.p) and len(sites):
             dist, _ = cKDTree(state.p).query(sites, distance_upper_bound=VACANT * self.spacing)
             sites = sites[~np.isfinite(dist)]
@@ -238,10 +266,12 @@ class AirDomain:
         shell = ~((sites > lo).all(1) & (sites < hi).all(1))
         return self._fill(state, sites[shell])
 
-    def step(self, sim, state: AirState, omega: float = 0.0) -> AirState:
-        """One step of the gas in air: inlet, the PBF step of ``sim`` (engine.PBFSimulator, any model terms) on
-        smoke and air together, housekeeping. Returns the new state (``state`` is changed)."""
-        self.inlet(state, omega)
+    def step(self, sim, state: AirState, omega: float = 0.0, inflow: bool = True) -> AirState:
+        """One step of the gas in air: inlet (unless ``inflow`` is off: a source switched off), the PBF step of
+        ``sim`` (engine.PBFSimulator, any model terms, with its loaded parameters and obstacle) on smoke and air
+        together, housekeeping. Returns the new state (``state`` is changed)."""
+        if inflow:
+            self.inlet(state, omega)
         if state.n > sim.capacity:
             raise ValueError(f"{state.n} particles exceed the simulator capacity {sim.capacity}")
         sim.load(state.p, state.u, state.age, state.smoke)

@@ -236,6 +236,7 @@ class PBFSimulator:
         self._grad_fields = [self.p, self.u, self.u_out, self.force, self.rho_pre, self.x, self.rho, self.gsq,
                              self.lam, self.gsum, self.dp]
         self._workspaces: dict = {}
+        self.theta = None
         self.set_model(self.model)
         self._tape: list = []
         self.token = None
@@ -252,10 +253,13 @@ class PBFSimulator:
         self.token = None
 
     def set_model(self, model: ModelConfig) -> None:
-        """Use ``model`` (terms and parameter values) from the next step on."""
+        """Use ``model`` (terms and parameter values) from the next step on; with as many parameters as the last
+        model, its parameter field is reused (the kernels are not compiled again)."""
         self.model = model
         self._offsets = model.offsets()
-        self.theta = ti.field(real(), shape=max(1, len(model.param_names())), needs_grad=True)
+        size = max(1, len(model.param_names()))
+        if self.theta is None or self.theta.shape[0] != size:
+            self.theta = ti.field(real(), shape=size, needs_grad=True)
         self.load_theta(model.to_vector())
         for term in model.terms:
             for name, dims in term.workspace:

@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 import taichi as ti
+from scipy.spatial import cKDTree
 
 TINY = 1e-20  # guards sqrt(0) and 0/0 in differentiated code without changing any finite value
 
@@ -89,3 +90,12 @@ def lattice_density(spacing: float, h: float) -> float:
     r2 = (ax[:, None, None] ** 2 + ax[None, :, None] ** 2 + ax[None, None, :] ** 2).ravel()
     r2 = r2[r2 < h * h]
     return float(np.sum(poly6_coef(h) * (h * h - r2) ** 3))
+
+
+def point_density(points: np.ndarray, particles: np.ndarray, h: float) -> np.ndarray:
+    """Poly6 number density [M] [1/m^3] of ``particles`` [N, 3] at ``points`` [M, 3] (numpy; between steps)."""
+    out = np.zeros(len(points))
+    if len(points) and len(particles):
+        pairs = cKDTree(points).sparse_distance_matrix(cKDTree(particles), h, output_type="ndarray")
+        np.add.at(out, pairs["i"], poly6_coef(h) * (h * h - pairs["v"] ** 2) ** 3)
+    return out

@@ -7,6 +7,11 @@ each candidate out from frame ``first - window`` over the ``window`` frames up t
 the scene's input cameras (real footage only) and scores them against the real frames (PSNR). The search is by
 coordinates: the drag k over ``DRAG_GRID`` at the model's alpha, then alpha scaled by ``ALPHA_SCALES`` at the best
 k. The best candidate, the model itself included, is the future's model. No frame after ``first`` is read.
+
+The gas in ambient air (model structure ``ambient_air``) is searched over alpha alone: its smoke passes momentum to
+the air through the solver and XSPH viscosity, and the Eq. S4 drag is inert among air at rest density, so the
+model has no drag to calibrate (diagnose fits none); each backtest surrounds the reconstructed smoke at
+``first - window`` with air at rest, as the future does at ``first``.
 """
 from __future__ import annotations
 
@@ -14,7 +19,6 @@ import logging
 from dataclasses import dataclass, replace
 
 import numpy as np
-import torch
 
 from ..engine import ModelConfig
 from ..engine.tensors import torch_dtype
@@ -42,7 +46,7 @@ class Calibration:
     model: ModelConfig
     window: tuple[int, int]  # the frames forecast in the backtest (start excluded, end included)
     views: tuple[str, ...]
-    candidates: tuple[dict, ...]  # {"alpha", "k", "psnr"}
+    candidates: tuple[dict, ...]  # {"alpha", "k", "psnr"}; k None without a drag term (ambient air)
 
     def to_dict(self) -> dict:
         chosen = max(self.candidates, key=lambda c: c["psnr"])
@@ -50,27 +54,29 @@ class Calibration:
                 "chosen": chosen, "candidates": list(self.candidates)}
 
 
-def with_buoyancy_drag(model: ModelConfig, alpha: float, k: float) -> ModelConfig:
-    """``model`` with the buoyancy alpha and the drag k replaced (every other term and parameter kept)."""
+def with_buoyancy_drag(model: ModelConfig, alpha: float, k: float | None) -> ModelConfig:
+    """``model`` with the buoyancy alpha and the drag k replaced (every other term and parameter kept; k None:
+    the drag as it is)."""
     terms = []
     for t in model.terms:
         if t.kind == "buoyancy":
             t = replace(t, alpha=float(alpha))
-        elif t.kind == "drag":
+        elif t.kind == "drag" and k is not None:
             t = replace(t, k=float(k))
         terms.append(t)
     return replace(model, terms=tuple(terms))
 
 
 def calibrate(run: Run, ctx: RunContext, first: int, window: int = DEFAULT_WINDOW) -> Calibration | None:
-    """Backtest calibration of ``ctx.model`` (which must have buoyancy and drag terms) before frame ``first``.
+    """Backtest calibration of ``ctx.model`` (which must have a buoyancy term, and a drag term in the paper's gas)
+    before frame ``first``.
 
     Returns None (and logs why) when the run has fewer than ``MIN_WINDOW`` frames before ``first``, the scene
-    has no input view with footage, or the model lacks a buoyancy or drag term.
+    has no input view with footage, or the model lacks a buoyancy term (or, in the paper's gas, a drag term).
     """
     kinds = {t.kind for t in ctx.model.terms}
-    if not {"buoyancy", "drag"} <= kinds:
-        log.info("calibration skipped: the model has no buoyancy or no drag term")
+    if "buoyancy" not in kinds or (ctx.model.air is None and "drag" not in kinds):
+        log.info("calibration skipped: the model has no buoyancy or (in the paper's gas) no drag term")
         return None
     window = min(window, first - run.frames[0])
     if window < MIN_WINDOW:
@@ -93,7 +99,8 @@ def calibrate(run: Run, ctx: RunContext, first: int, window: int = DEFAULT_WINDO
 
 def search(start: Smoke, cameras: list, truth: list[np.ndarray], ctx: RunContext,
            behind: list | None = None) -> tuple[ModelConfig, tuple]:
-    """The coordinate search: (best model, candidates {"alpha", "k", "psnr"}).
+    """The coordinate search: (best model, candidates {"alpha", "k", "psnr"}); in ambient air over alpha alone
+    (k None).
 
     Args:
         start: the state the backtest starts from.
@@ -104,16 +111,20 @@ def search(start: Smoke, cameras: list, truth: list[np.ndarray], ctx: RunContext
     window = truth[0].shape[0]
     ws = workspace_for(start, window, ctx, ctx.model)
 
-    def score(alpha: float, k: float) -> float:
+    def score(alpha: float, k: float | None) -> float:
         model = with_buoyancy_drag(ctx.model, alpha, k)
-        ws.model, ws.theta = model, torch.tensor(model.to_vector(), dtype=ws.dtype)
+        ws.set_model(model)
         values = [psnr(render_state(s.to_state(), cam, b), video[i])
                   for i, s in enumerate(rollout(start, window, ws, replace(ctx, model=model)))
                   for cam, video, b in zip(cameras, truth, behind)]
         return float(np.mean(values))
 
-    alpha0, k0 = ctx.model.term("buoyancy").alpha, ctx.model.term("drag").k
-    drags = sorted(set(DRAG_GRID) | {k0})
+    alpha0 = ctx.model.term("buoyancy").alpha
+    if ctx.model.air is None:
+        k0 = ctx.model.term("drag").k
+        drags = sorted(set(DRAG_GRID) | {k0})
+    else:
+        k0, drags = None, [None]
     alphas = [alpha0 * s for s in ALPHA_SCALES if s != 1.0]
     results: dict[tuple[float, float], float] = {}
     with progress("calibrate", len(drags) + len(alphas)) as bar:
@@ -125,7 +136,7 @@ def search(start: Smoke, cameras: list, truth: list[np.ndarray], ctx: RunContext
             results[(alpha, best_k)] = score(alpha, best_k)
             bar.advance()
     (alpha, k), best = max(results.items(), key=lambda item: item[1])
-    log.info("calibration: alpha %.4g, k %.3g (%.2f dB; the model as given %.2f dB)", alpha, k, best,
-             results[(alpha0, k0)])
+    log.info("calibration: alpha %.4g, k %s (%.2f dB; the model as given %.2f dB)", alpha,
+             "none" if k is None else f"{k:.3g}", best, results[(alpha0, k0)])
     candidates = tuple({"alpha": a, "k": kk, "psnr": v} for (a, kk), v in results.items())
     return with_buoyancy_drag(ctx.model, alpha, k), candidates

@@ -3,7 +3,8 @@
 Each future frame t repeats what the reconstruction does before its fit, without the fit: the emitter seeds
 frame t's particles (the new Gaussians look like the recently emitted ones of the reconstruction, ``inflow_look``), the PBF gas steps (p_t, u_t) = Sim(u_{t-1}, p_{t-1}) (with the interaction's wind term and
 obstacle if any), the visual particles are advected x_t = x_{t-1} + dt V_t(x_{t-1}) (Eq. 2) and pushed out of an
-obstacle, and physical particles left without a neighbour are deleted (as in the release).
+obstacle, and physical particles left without a neighbour are deleted (as in the release). A model whose structure is
+the gas in ambient air rolls out in air instead (``air.py``).
 """
 from __future__ import annotations
 
@@ -23,20 +24,25 @@ from ..recon.smoke import Smoke
 from ..recon.workspace import Workspace
 from ..runs import Run
 from ..scene import Source
+from .air import air_capacity, air_rollout
 
 WIND_PROFILES = {"uniform": "constant", "height": "ramp"}
 
 
 @dataclass(frozen=True)
 class RunContext:
-    """What a rollout needs from a run folder: its settings, its smoke inflow and the scene's obstacles (an
-    engine body, or None)."""
+    """What a rollout needs from a run folder: its settings, its smoke inflow, the scene's obstacles (an engine
+    body, or None), the scene's volume ((lo, hi) [m], or None; the air of the gas in ambient air stays in it) and
+    the paper's gas of the per-frame fits (``fit_model``: the reconstruction's model; the re-fit after refining
+    runs it when the future is the gas in ambient air)."""
 
     config: ReconConfig
     solver: SolverConfig
     model: ModelConfig
     source: Source
     obstacle: object = None
+    box: tuple | None = None
+    fit_model: ModelConfig | None = None
 
     @classmethod
     def of(cls, run: Run) -> "RunContext":
@@ -46,9 +52,12 @@ class RunContext:
 
         cfg = run.config
         src = run.info.get("source") or _summary_source(run)
+        volume = run.scene(check_videos=False).volume
+        model = ModelConfig.from_dict(cfg["model"])
         return cls(ReconConfig.from_dict(cfg["recon"], run.root / "config.json"), SolverConfig.from_dict(cfg["solver"]),
-                   ModelConfig.from_dict(cfg["model"]), Source.from_dict(src, run.root / "run.json"),
-                   run_scenery(run).obstacle)
+                   model, Source.from_dict(src, run.root / "run.json"), run_scenery(run).obstacle,
+                   None if volume is None else (tuple(volume.min), tuple(volume.max)),
+                   ModelConfig.from_dict(cfg["fit_model"]) if "fit_model" in cfg else model)
 
 
 def _summary_source(run: Run) -> dict:
@@ -79,13 +88,35 @@ def with_wind(model: ModelConfig, accel, profile: str, y0: float, height: float)
         raise InputError(None, "--profile", f"must be one of {sorted(WIND_PROFILES)}, got {profile!r}")
     wind = Wind(accel=tuple(float(a) for a in accel), profile=WIND_PROFILES[profile], y0=float(y0),
                 height=float(height))
-    return replace(model, terms=tuple(t for t in model.terms if t.kind != "wind") + (wind,))
+    return _with_wind_term(model, (wind,))
+
+
+def _with_wind_term(model: ModelConfig, wind: tuple) -> ModelConfig:
+    """``model`` with its wind term replaced by the terms ``wind`` (none or one)."""
+    return replace(model, terms=tuple(t for t in model.terms if t.kind != "wind") + tuple(wind))
+
+
+def refit_model(model: ModelConfig, ctx: RunContext) -> ModelConfig:
+    """The model of the re-fit's per-frame fits for a future of ``model``: ``model`` itself for the paper's gas;
+    for the gas in ambient air, the run's paper gas (``ctx.fit_model``) with ``model``'s wind term if it has one
+    (the fit is the reconstruction's, whose smoke moves without air)."""
+    if model.air is None:
+        return model
+    return _with_wind_term(ctx.fit_model, tuple(t for t in model.terms if t.kind == "wind"))
+
+
+def capacities(smoke: Smoke, frames: int, ctx: RunContext, model: ModelConfig) -> tuple[int, int, int]:
+    """(physical, smoke, visual) particle capacities of a future of ``frames`` frames from ``smoke``: the smoke plus
+    every emission; the workspace's physical side holds the air too with the gas in ambient air (an estimate,
+    ``air.air_capacity``)."""
+    phys = smoke.p.shape[0] + (frames + 1) * physical_source(ctx.source, ctx.config).count + 64
+    vis = smoke.x.shape[0] + (frames + 1) * visual_source(ctx.source, ctx.config).count + 64
+    return (phys if model.air is None else air_capacity(smoke, frames, ctx, model)), phys, vis
 
 
 def workspace_for(smoke: Smoke, frames: int, ctx: RunContext, model: ModelConfig) -> Workspace:
-    """A workspace large enough for ``smoke`` plus ``frames`` frames of emission."""
-    phys = smoke.p.shape[0] + (frames + 1) * physical_source(ctx.source, ctx.config).count + 64
-    vis = smoke.x.shape[0] + (frames + 1) * visual_source(ctx.source, ctx.config).count + 64
+    """A workspace large enough for ``smoke`` plus ``frames`` frames of emission (and the air, ``capacities``)."""
+    phys, _, vis = capacities(smoke, frames, ctx, model)
     return Workspace(phys, vis, ctx.solver, model)
 
 
@@ -122,11 +153,14 @@ def physics_step(smoke: Smoke, ws: Workspace, ctx: RunContext, look=None) -> Smo
 
 def rollout(start: Smoke, frames: int, ws: Workspace, ctx: RunContext, obstacle=None) -> Iterator[Smoke]:
     """Yield ``frames`` future frames after ``start`` around the scene's obstacles and ``obstacle`` (``ws`` keeps
-    them set)."""
+    them set), in the structure of ``ws.model`` (the paper's gas, or the gas in ambient air: ``air.air_rollout``)."""
     if frames <= 0:
         raise InputError(None, "--frames", f"must be > 0, got {frames}")
     ws.set_obstacle(join(ctx.obstacle, obstacle))
     smoke, look = start, inflow_look(start, ctx)
+    if ws.model.air is not None:
+        yield from air_rollout(start, frames, ws, ctx, look)
+        return
     for _ in range(frames):
         smoke = physics_step(smoke, ws, ctx, look)
         yield smoke

@@ -2,8 +2,8 @@
 
 The new folder is a run like any other (docs/run-format.md): ``run.json`` (kind ``predict`` or ``interact``, the
 parent run, the start frame, the smoke source, the interaction), ``config.json`` (the model includes the wind
-term), ``frames/`` (the future frames only), ``summary.json``, and ``videos/`` (the rough and refined renders
-that the re-fit used; ``interact`` adds its side-by-side comparisons).
+term; ``fit_model`` is the re-fit's), ``frames/`` (the future frames only), ``summary.json``, and ``videos/`` (the
+rough and refined renders that the re-fit used; ``interact`` adds its side-by-side comparisons).
 """
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ from ..state import frame_path, save_frame
 from ..video import write_video
 from .anchor import anchor_videos, known_frames
 from .generative import refine_videos, refit, rough_videos
-from .rollout import RunContext, rollout, workspace_for
+from .rollout import RunContext, refit_model, rollout, workspace_for
 from .shading import ObstacleLayer, render_with_obstacle
 
 log = logging.getLogger("fluidnexus")
@@ -66,7 +66,7 @@ def prepare(out: Path, run: Run, kind: str, first: int, frames: int, ctx: RunCon
                                   "frames": [first + 1, first + 1 + frames], "parent": str(run.root.resolve()),
                                   "start_frame": first, "source": ctx.source.to_dict(), **info})
     write_json(out / "config.json", {"recon": ctx.config.to_dict(), "solver": ctx.solver.to_dict(),
-                                     "model": model.to_dict()})
+                                     "model": model.to_dict(), "fit_model": refit_model(model, ctx).to_dict()})
 
 
 def _save(out: Path, smoke: Smoke) -> None:
@@ -113,7 +113,7 @@ def simulate_future(run: Run, out: Path, kind: str, frames: int, interaction: In
     start = Smoke.from_state(run.state(first), torch_dtype())
     limit = memory.parse_limit(None) if max_memory is None else max_memory
     cameras = [cam for _, cam in scene_cameras(run)]
-    memory.check(memory.future_estimate(kind, start, frames, ctx, cameras, refiner is not None), limit)
+    memory.check(memory.future_estimate(kind, start, frames, ctx, model, cameras, refiner is not None), limit)
     prepare(out, run, kind, first, frames, ctx, model, info)
     tic = time.perf_counter()
     ws = workspace_for(start, frames, ctx, model)
@@ -134,6 +134,7 @@ def simulate_future(run: Run, out: Path, kind: str, frames: int, interaction: In
         for name, r, f in zip(names, rough[:, 1:], refined):
             write_video(out / "videos" / f"rough_{name}.mp4", r, fps=fps)
             write_video(out / "videos" / f"refined_{name}.mp4", f, fps=fps)
+        ws.set_model(refit_model(model, ctx))  # the gas in ambient air re-fits with the paper's gas
         saved = list(refit(start, refined, cameras, ws, ctx, interaction.obstacle, behind))
     for smoke in saved:
         _save(out, smoke)

@@ -78,17 +78,20 @@ def initial_visual(source: Source, hull_points: np.ndarray, cfg: ReconConfig, mi
                                    cfg.visual_spacing), source.center, source.direction)
 
 
-def emit(smoke: Smoke, source: Source, cfg: ReconConfig, frame: int, look=None) -> None:
+def emit(smoke: Smoke, source: Source, cfg: ReconConfig, frame: int, look=None, physical: bool = True) -> None:
     """Seed one frame's new physical and visual particles at the source (nothing outside its emission window);
     the physical ones leave it at the inflow velocity.
 
     ``look`` (colour [C] or a float, scale, opacity) is the new Gaussians' appearance; default the constant initial
-    appearance of ``cfg``.
+    appearance of ``cfg``. Without ``physical`` only the Gaussians are seeded, at the same places (the gas in
+    ambient air gets its smoke from the inlet).
     """
     if not source.emits_at(frame):
         return
     rng = frame_rng(cfg.seed, frame)
     emitter = physical_source(source, cfg)
-    smoke.add_physical(torch.as_tensor(emitter.sample(rng)), emitter.velocity)
+    points = emitter.sample(rng)
+    if physical:
+        smoke.add_physical(torch.as_tensor(points), emitter.velocity)
     color, scale, opacity = look if look is not None else (cfg.color0, cfg.scale0, cfg.opacity0)
     smoke.add_visual(torch.as_tensor(visual_source(source, cfg).sample(rng)), color, scale, opacity)

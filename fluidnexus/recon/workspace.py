@@ -1,5 +1,8 @@
-"""Engine objects a reconstruction reuses every iteration, sized once for the whole run."""
+"""Engine objects a reconstruction reuses every iteration, sized once for the whole run (a rollout in ambient air
+grows the physical side when its plume needs more, :meth:`Workspace.reserve`)."""
 from __future__ import annotations
+
+import logging
 
 import numpy as np
 import taichi as ti
@@ -8,6 +11,8 @@ import torch
 from .. import engine
 from ..engine import FieldQuery, ModelConfig, NeighborTable, PBFSimulator, SolverConfig, simulate_step
 from ..engine.tensors import torch_dtype
+
+log = logging.getLogger("fluidnexus")
 
 
 class Workspace:
@@ -26,18 +31,40 @@ class Workspace:
                  extra_gaussians: int = 0):
         self.solver, self.model = solver, model
         self.dtype = torch_dtype()
-        self.sim = PBFSimulator(physical_capacity, solver, model)
         self.theta = torch.tensor(model.to_vector(), dtype=self.dtype)
-        h = solver.h
-        self.advect_query = FieldQuery(physical_capacity, visual_capacity, h)
-        self.density_query = FieldQuery(physical_capacity, physical_capacity, h)
-        self.next_query = FieldQuery(physical_capacity, physical_capacity, h)
+        self._allocate(physical_capacity, visual_capacity)
         self._pair_points = ti.Vector.field(3, engine.real(), shape=visual_capacity)
         self._pair_dtype = np.float64 if self.dtype == torch.float64 else np.float32
         self._pair_table = NeighborTable(visual_capacity, width=32)
         # the render kernels compile once, not at every doubling; static Gaussians are drawn with the smoke
         engine.reserve_gaussians(visual_capacity + extra_gaussians)
         self.obstacle, self._projector = None, None
+
+    def _allocate(self, physical_capacity: int, visual_capacity: int) -> None:
+        """The simulator and the field queries for these capacities."""
+        h = self.solver.h
+        self.sim = PBFSimulator(physical_capacity, self.solver, self.model)
+        self.advect_query = FieldQuery(physical_capacity, visual_capacity, h)
+        self.density_query = FieldQuery(physical_capacity, physical_capacity, h)
+        self.next_query = FieldQuery(physical_capacity, physical_capacity, h)
+
+    def set_model(self, model: ModelConfig) -> None:
+        """Use ``model`` (terms, parameters, structure) from the next step on."""
+        self.model = model
+        self.theta = torch.tensor(model.to_vector(), dtype=self.dtype)
+        self.sim.set_model(model)
+
+    def reserve(self, physical: int) -> None:
+        """Room for ``physical`` particles (the gas in ambient air grows with its plume): when the simulator is
+        smaller, a new one and new field queries 1.5 x larger (model and obstacle kept; Taichi keeps the old
+        fields allocated)."""
+        if physical <= self.sim.capacity:
+            return
+        capacity = int(1.5 * physical)
+        log.info("workspace: %d physical particles exceed the capacity %d; grown to %d", physical, self.sim.capacity,
+                 capacity)
+        self._allocate(capacity, self.advect_query.query_capacity)
+        self.set_obstacle(self.obstacle)
 
     def set_obstacle(self, obstacle) -> None:
         """A rigid body (``engine.obstacle``; None for none) that no particle ends a step inside: the simulator

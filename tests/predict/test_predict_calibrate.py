@@ -6,7 +6,7 @@ import json
 import numpy as np
 import torch
 
-from fluidnexus.engine import AmbientAir, ModelConfig
+from fluidnexus.engine import ModelConfig
 from fluidnexus.engine.forces import Buoyancy, Drag, Vorticity
 from fluidnexus.runs import open_run
 
@@ -64,11 +64,7 @@ def test_predict_rejects_bad_model_options(start_run, tmp_path):
     result = invoke("predict", start_run, "--frames", 2, "--out", tmp_path / "y", "--no-refit",
                     "--calibrate-window", 0)
     assert result.exit_code == 2 and "--calibrate-window" in result.output
-    air = tmp_path / "air.json"  # the gas in ambient air (diagnose's structure) is not simulated by predict yet
-    air.write_text(json.dumps({"model": ModelConfig((Buoyancy(), Drag()), AmbientAir()).to_dict()}))
-    result = invoke("predict", start_run, "--frames", 2, "--out", tmp_path / "z", "--no-refit", "--model", air)
-    assert result.exit_code == 2 and "ambient_air" in result.output
-    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists() and not (tmp_path / "z").exists()
+    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
 
 
 def test_new_smoke_looks_like_the_recent_inflow(start_run):
