@@ -62,11 +62,17 @@ def _score(rendered: list[np.ndarray], truth: np.ndarray, lpips_weights) -> Scor
 
 
 def resimulate(run: Run, frames: list[int]) -> list[FrameState]:
-    """States whose visual positions come only from advecting the first frame through the saved velocities."""
+    """States whose visual positions come only from advecting the first frame through the saved velocities (and,
+    as in the reconstruction, moved out of the scene's obstacles)."""
+    from .engine.obstacle import PointProjector
+    from .recon.scenery import run_scenery
+
     first = run.state(frames[0])
     out = [first]
     x = torch.as_tensor(first.visual_positions, dtype=torch_dtype())
     query = None
+    obstacle = run_scenery(run).obstacle
+    projector = PointProjector(max(1, first.num_visual)) if obstacle is not None else None
     for t in frames[1:]:
         state = run.state(t)
         p = torch.as_tensor(state.physical_positions, dtype=x.dtype)
@@ -75,6 +81,8 @@ def resimulate(run: Run, frames: list[int]) -> list[FrameState]:
             query = engine.FieldQuery(2 * max(len(p), 1), 2 * state.num_visual, run.config["solver"]["h"])
         with torch.no_grad():
             x = engine.advect(x, p, u, run.dt, query)
+            if obstacle is not None:  # as the reconstruction moved them: out of the scene's obstacles
+                x = projector(obstacle, x)
         born = torch.as_tensor(state.visual_positions[len(x):], dtype=x.dtype)  # emitted at this frame
         x = torch.cat([x, born])[: state.num_visual]
         out.append(FrameState(t, state.physical_positions, state.physical_velocities, x.numpy().astype(np.float32),
