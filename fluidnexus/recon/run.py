@@ -164,6 +164,9 @@ def reconstruct(scene: Scene, out: str | Path, setup: RunSetup, resume: bool = F
     log.info("%s", memory.check(memory.recon_estimate(scene, setup, frames, len(seeds)), limit).describe())
     setup = replace(setup, config=_initial_look(scene, cfg, obs, seeds, out, resume))
     first = _prepare_folder(out, scene, setup, frames, resume)
+    if first >= frames[1] and (out / "summary.json").is_file():  # a finished run resumed: nothing to do
+        log.info("every frame of %d:%d is already in %s", *frames, out)
+        return read_json(out / "summary.json")
     if scenery.layer is not None and not (out / STATIC_FILE).is_file():
         save_static(out, scenery.layer)
     if first == frames[0]:  # predict/interact read the inflow from run.json, also of an unfinished run
