@@ -9,6 +9,8 @@ physics alone with the paper's constants (--no-refit --no-calibrate), the physic
 
     python benchmarks/bench_predict.py --protocol four-view --work /tmp/bp --first 0
     python benchmarks/bench_predict.py --run RUN --work /tmp/bp   # reuse a reconstruction
+    python benchmarks/bench_predict.py --run RUN --work /tmp/bp --model D/model.json \
+        --only physics,refit,physics_model,refit_model
 """
 from __future__ import annotations
 
@@ -36,6 +38,9 @@ def main() -> None:
     ap.add_argument("--first", type=int, default=0, help="First reconstructed frame (the protocol: 0).")
     ap.add_argument("--frames", type=int, default=30, help="Predicted frames (the protocol: 30, 90-119).")
     ap.add_argument("--skip-refit", action="store_true", help="Only the physics rollout.")
+    ap.add_argument("--model", type=Path,
+                    help="A model.json (e.g. diagnose's): adds the physics and the default loop with --model.")
+    ap.add_argument("--only", help="Comma-separated variants to run (default: all).")
     ap.add_argument("--recon-args", default="", help="Extra recon options, e.g. '--max-loss 100000'.")
     args = ap.parse_args()
     work = args.work.resolve()  # the CLI runs from the repository root
@@ -53,6 +58,11 @@ def main() -> None:
     variants = [("physics_paper_model", ["--no-refit", "--no-calibrate"]), ("physics", ["--no-refit"])]
     if not args.skip_refit:
         variants += [("refit_unanchored", ["--refine", "temporal", "--no-anchor"]), ("refit", ["--refine", "temporal"])]
+    if args.model:
+        variants += [("physics_model", ["--no-refit", "--model", args.model.resolve()]),
+                     ("refit_model", ["--refine", "temporal", "--model", args.model.resolve()])]
+    if args.only:
+        variants = [v for v in variants if v[0] in args.only.split(",")]
     for name, extra in variants:
         out = work / f"predict_{name}"
         timing[f"{name}_s"] = cli("predict", run, "--from", 89, "--frames", args.frames, "--out", out, *extra)

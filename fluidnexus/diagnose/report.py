@@ -137,8 +137,9 @@ def _structure_text(report, observed, bases, structure, plots, va) -> list[str]:
         verdict = (f"In ambient air the validation error falls from {e_pg:.4f} to {e_aa:.4f} "
                    f"({100 * gain:.0f} % lower): the candidates below extend the gas in ambient air.")
     else:
+        change = f"{100 * gain:.0f} % lower" if gain > 0 else f"{-100 * gain:.0f} % higher"
         verdict = (f"In ambient air the validation error is {e_aa:.4f} against the paper's gas {e_pg:.4f} "
-                   f"({100 * gain:+.0f} % lower), not clearly lower: the candidates below extend the paper's gas.")
+                   f"({change}), not clearly lower: the candidates below extend the paper's gas.")
     p = report["structure"]["params"]
     text = ", ".join(f"{k} {v:.3g}" for k, v in p.items())
     return [f"## Structure: {structure}", "",
