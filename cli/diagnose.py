@@ -45,7 +45,9 @@ def diagnose(source, out, train_frames, validate_frames, height, spacing, evals,
     report = run_diagnose(scene_dir, out, _window(train_frames, "--train-frames"),
                           _window(validate_frames, "--validate-frames"), height=height, spacing=spacing,
                           maxfev=evals)
-    g, st = report["finding"]["gain"], report["structure"]
+    g, st, em = report["finding"]["gain"], report["structure"], report["emission"]
+    stop = "the end" if em["window"][1] is None else f"frame {em['window'][1]} (exclusive)"
+    click.echo(f"emission: from frame {em['window'][0]} to {stop} (from the {em['from']})")
     click.echo(f"structure: {st['name']} (validation image error {st['gain']['before']:.4f} -> "
                f"{st['gain']['after']:.4f})")
     click.echo(f"finding: {report['finding']['effect']} {report['finding']['params']} "

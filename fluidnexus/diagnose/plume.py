@@ -99,6 +99,8 @@ class PlumeSetup:
         seed: [M, 3] particles present at the first frame (e.g. from the visual hull) [m].
         air_seed: the same for the ambient-air structure, on its coarser lattice [m].
         iterations: PBF solver iterations per step.
+        emitting: [frames] bool, whether the source emits in the step into each frame (the emission window,
+            emission.py); None: in every step.
     """
 
     source_center: tuple
@@ -111,6 +113,11 @@ class PlumeSetup:
     seed: np.ndarray
     air_seed: np.ndarray
     iterations: int = 4
+    emitting: np.ndarray | None = None
+
+    def emits(self, frame: int) -> bool:
+        """Whether the source emits in the step into rollout frame ``frame``."""
+        return self.emitting is None or bool(self.emitting[frame])
 
     def solver_for(self, structure: str) -> SolverConfig:
         """The solver of a structure: H and rho0 follow its lattice (``spacing``, or ``AIR_SPACING`` x coarser)."""
@@ -163,7 +170,8 @@ class PlumeSimulator:
         return sim
 
     def rollout(self, params: PlumeParams) -> Rollout:
-        """Simulate ``setup.frames`` frames (one PBF step per frame; paper_gas: emission before each step)."""
+        """Simulate ``setup.frames`` frames (one PBF step per frame; emission before each step inside the
+        emission window: paper_gas's disk layers, ambient_air's inlet)."""
         if params.structure == "ambient_air":
             return self._rollout_air(params)
         s = self.setup
@@ -178,9 +186,10 @@ class PlumeSimulator:
         inflow = per_step * s.fps * s.spacing
         phase = 1.0
         out = Rollout([particles.get("position").copy()], [particles.get("age").ravel().copy()])
-        for _ in range(1, s.frames):
-            phase += per_step
-            if phase >= 1.0:
+        for t in range(1, s.frames):
+            on = s.emits(t)
+            phase += per_step if on else 0.0
+            if on and phase >= 1.0:
                 phase -= 1.0
                 pts = source.sample(rng)
                 r = pts - np.asarray(s.source_center)
@@ -201,8 +210,8 @@ class PlumeSimulator:
         state = domain.initial(s.air_seed)
         omega = float(params.ext("swirl", "omega"))
         out = Rollout([state.p[state.is_smoke].copy()], [state.age[state.is_smoke].copy()])
-        for _ in range(1, s.frames):
-            state = domain.step(sim, state, omega)
+        for t in range(1, s.frames):
+            state = domain.step(sim, state, omega, inflow=s.emits(t))
             out.positions.append(state.p[state.is_smoke].copy())
             out.ages.append(state.age[state.is_smoke].copy())
         return out

@@ -7,6 +7,7 @@ import numpy as np
 
 from fluidnexus.atomic import write_json
 
+from .emission import EMPTY
 from .observe import observables
 from .plots import line_plot
 from .plume import AIR_SPACING
@@ -45,8 +46,9 @@ def model_dict(fit, setup) -> dict:
 
 
 def write_outputs(out_dir: Path, observed, bases: dict, structure: str, fits: dict, judged: dict, finding: str,
-                  train, validate, fitter, spread: tuple[int, float], seconds: float) -> dict:
-    """``bases``: the control fit of each structure; ``structure``: the chosen one."""
+                  train, validate, fitter, spread: tuple[int, float], emission, seconds: float) -> dict:
+    """``bases``: the control fit of each structure; ``structure``: the chosen one; ``emission``: the source's
+    emission window (emission.Emission)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     a = train[0]
     va = np.arange(validate[0] - a, validate[1] - a)
@@ -64,13 +66,15 @@ def write_outputs(out_dir: Path, observed, bases: dict, structure: str, fits: di
               "candidates": candidates,
               "windows": {"train": list(train), "validate": list(validate)},
               "views": list(observed.names),
+              "emission": emission.to_dict(),
               "structure": {"name": structure, "params": structure_params(base.params),
                             "gain": {"metric": "validation_image_error",
                                      "before": float(bases["paper_gas"].errors[va].mean()), "after": b_err}}}
     write_json(out_dir / "report.json", report)
     write_json(out_dir / "model.json", model_dict(chosen, fitter.sim.setup))
     plots = _plots(out_dir, observed, bases, chosen, finding, train, validate)
-    text = _markdown(report, observed, bases, structure, fits, judged, finding, va, plots, fitter, spread, seconds)
+    text = _markdown(report, observed, bases, structure, fits, judged, finding, va, plots, fitter, spread, emission,
+                     seconds)
     (out_dir / "report.md").write_text(text)
     return report
 
@@ -148,7 +152,22 @@ def _structure_text(report, observed, bases, structure, plots, va) -> list[str]:
             f"frames; each structure's base model refitted on the training frames. Base model: {text}.)", ""]
 
 
-def _markdown(report, observed, bases, structure, fits, judged, finding, va, plots, fitter, spread, seconds) -> str:
+def _emission_text(emission, last: int) -> str:
+    """report.md's sentence on when the source emits (emission.Emission; ``last``: the last frame diagnosed)."""
+    if emission.source == "scene":
+        until = "to the end" if emission.stop is None else f"until frame {emission.stop - 1}"
+        return (f"The source emits from frame {emission.start} {until}, as the scene declares "
+                "(`source.window`); the simulated plumes emit only then.")
+    if emission.stop is None:
+        return (f"The scene declares no emission window. In the footage the smoke at the source is replenished up "
+                f"to frame {last}, so the source is taken to emit throughout (frames {emission.start}-{last}).")
+    return (f"The scene declares no emission window. In the footage new smoke stops appearing at the source after "
+            f"frame {emission.stop - 1}: the smoke around it falls below {100 * EMPTY:.0f} % of its peak and stays "
+            f"there to frame {last}. The simulated plumes emit from frame {emission.start} to frame {emission.stop - 1} only.")
+
+
+def _markdown(report, observed, bases, structure, fits, judged, finding, va, plots, fitter, spread, emission,
+              seconds) -> str:
     o, s0, s1 = plots["observed"], plots["models"][structure], plots["chosen"]
     base = bases[structure]
     last = observed.first + observed.images.shape[1] - 1
@@ -158,7 +177,7 @@ def _markdown(report, observed, bases, structure, fits, judged, finding, va, plo
              f"Views used ({len(observed.names)}): {', '.join(observed.names)}. Training frames "
              f"{report['windows']['train'][0]}:{report['windows']['train'][1]}, validation frames "
              f"{report['windows']['validate'][0]}:{report['windows']['validate'][1]} (half-open). "
-             f"{fitter.evaluations} rollouts, {seconds:.0f} s.", ""]
+             f"{fitter.evaluations} rollouts, {seconds:.0f} s.", "", _emission_text(emission, last), ""]
     lines += _structure_text(report, observed, bases, structure, plots, va)
     lines += ["## What the base model gets wrong", "",
               f"Base model ({_base_text(base.params)}) fitted on the "

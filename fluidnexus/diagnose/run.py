@@ -14,6 +14,7 @@ from fluidnexus.scene import load_ground_truth, load_scene
 from fluidnexus.scene_scale import scene_factor
 from fluidnexus.video import read_video
 
+from .emission import emission_window
 from .observe import Observed, observables
 from .plume import AIR_SPACING, EXTENSIONS, STRUCTURES, PlumeSetup, PlumeSimulator
 from .report import write_outputs
@@ -104,8 +105,12 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
         hi = np.asarray(src[0]) + factor * np.array([0.3, 0.8, 0.3])
     seed = visual_hull(observed, lo, hi, spacing)
     air_seed = visual_hull(observed, lo, hi, spacing * AIR_SPACING)
-    setup = PlumeSetup(tuple(src[0]), float(src[1]), spacing, observed.fps, d - a, tuple(lo - 0.1 * factor), tuple(hi + 0.1 * factor),
-                       seed, air_seed)
+    emission = emission_window(scene.source, observed, *src)  # the scene's window, else when the footage shows it
+    log.info("diagnose: the source emits in frames [%d, %s) (from the %s)", emission.start,
+             "end" if emission.stop is None else emission.stop, emission.source)
+    setup = PlumeSetup(tuple(src[0]), float(src[1]), spacing, observed.fps, d - a, tuple(lo - 0.1 * factor),
+                       tuple(hi + 0.1 * factor), seed, air_seed,
+                       emitting=np.array([emission.emits_at(a + t) for t in range(d - a)]))
     sim = PlumeSimulator(setup)
     cams = observed.cameras
     # particle footprint: the source spacing seen from the mean camera distance
@@ -148,7 +153,7 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
     passing = [n for n in candidates if judged[n].passes]
     finding = max(passing, key=lambda n: judged[n].relative_gain) if passing else "none"
     report = write_outputs(out_dir, observed, bases, structure, fits, judged, finding, (a, b), (c, d), fitter,
-                           spread, time.perf_counter() - started)
+                           spread, emission, time.perf_counter() - started)
     log.info("diagnose: finding %s (%d rollouts, %.0f s)", finding, fitter.evaluations,
              time.perf_counter() - started)
     return report

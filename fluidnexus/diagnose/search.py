@@ -206,8 +206,9 @@ class Judgement:
 
 #: What footage would tell each extension apart from a base model refitted differently (report.md).
 FOOTAGE_HINTS = {
-    "buoyancy_decay": "film the source switching off (a burst): buoyancy that fades and a weaker buoyancy differ "
-                      "only once no new smoke comes",
+    "buoyancy_decay": "film the source switching off (a burst) and the puff for long after it: buoyancy that fades "
+                      "and a weaker buoyancy differ only once no new smoke comes, and more the longer the puff rises "
+                      "alone",
     "dissipation": "film the smoke after the source stops, or for longer: fading and a weaker inflow differ once "
                    "the inflow is gone",
     "wind": "film from a second direction at right angles (a drift along a camera's axis barely shows in it), or "

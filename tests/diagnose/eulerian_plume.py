@@ -1,9 +1,11 @@
 """Test-only generator of measured data: a small Eulerian grid smoke solver (not the PBF model under diagnosis).
 
 Collocated grid, semi-Lagrangian advection (trilinear), Jacobi pressure projection, buoyancy proportional to the
-smoke density, inflow disk at the bottom (fixed inflow velocity, constant smoke flux). Each effect of diagnose can be switched on: ambient wind (the air
-moves: everything is advected by u + wind), buoyancy decay with parcel age (an advected age field), vorticity
-confinement (Fedkiw et al. 2001), viscosity (explicit diffusion of u), dissipation (density fades), inflow swirl.
+smoke density, inflow disk at the bottom (fixed inflow velocity, constant smoke flux; a burst switches it off from
+a frame on: the disk then neither adds smoke nor imposes its velocity). Each effect of diagnose can be switched on:
+ambient wind (the air moves: everything is advected by u + wind), buoyancy decay with parcel age (an advected age
+field), vorticity confinement (Fedkiw et al. 2001), viscosity (explicit diffusion of u), dissipation (density
+fades), inflow swirl.
 The density is rendered additively through the scene's cameras (voxel centres splatted, as emission only).
 """
 from __future__ import annotations
@@ -76,8 +78,12 @@ def _project(u: np.ndarray, dx: float, iters: int = 30) -> np.ndarray:
     return u - _grad(p, dx)
 
 
-def simulate(frames: int, effects: PlumeEffects = PlumeEffects(), grid: Grid = Grid()) -> np.ndarray:
-    """Density [frames, nx, ny, nz] at each frame (frame 0: before any inflow)."""
+def simulate(frames: int, effects: PlumeEffects = PlumeEffects(), grid: Grid = Grid(),
+             stop: int | None = None) -> np.ndarray:
+    """Density [frames, nx, ny, nz] at each frame (frame 0: before any inflow).
+
+    ``stop``: a burst: the source is on for frames [0, stop) only (the step into frame t emits while t < stop, the
+    convention of scene.Source.emits_at); None: on to the end."""
     dx, dt = grid.dx, 1.0 / (grid.fps * grid.substeps)
     c = grid.centres()
     r = c - np.asarray(grid.source)
@@ -86,13 +92,15 @@ def simulate(frames: int, effects: PlumeEffects = PlumeEffects(), grid: Grid = G
     u = np.zeros(grid.shape + (3,))
     wind = np.asarray(effects.wind, float)
     out = [d.copy()]
-    for _ in range(1, frames):
+    for t in range(1, frames):
+        on = stop is None or t < stop
         for _ in range(grid.substeps):
-            d[disk] += dt * grid.emission  # constant smoke flux, as a particle source
-            age[disk] = 0.0
-            u[disk] = [0.0, grid.inflow_speed, 0.0]
-            u[disk, 0] += effects.omega * r[disk][:, 2]
-            u[disk, 2] += -effects.omega * r[disk][:, 0]
+            if on:
+                d[disk] += dt * grid.emission  # constant smoke flux, as a particle source
+                age[disk] = 0.0
+                u[disk] = [0.0, grid.inflow_speed, 0.0]
+                u[disk, 0] += effects.omega * r[disk][:, 2]
+                u[disk, 2] += -effects.omega * r[disk][:, 0]
             decay = np.exp(-age / effects.tau) if np.isfinite(effects.tau) else 1.0
             u[..., 1] += dt * grid.buoyancy * d * decay
             if effects.epsilon > 0:
@@ -115,9 +123,10 @@ def simulate(frames: int, effects: PlumeEffects = PlumeEffects(), grid: Grid = G
 
 
 def write_scene(template_scene: Path, out: Path, density: np.ndarray, grid: Grid = Grid(),
-                size: tuple = (34, 60), peak: float = 0.8) -> Path:
+                size: tuple = (34, 60), peak: float = 0.8, window: tuple | None = None) -> Path:
     """A scene (all views as ``input``, PNG frame folders) of ``density`` seen by the template's cameras
-    (its views and ground truth) at ``size`` (width, height); the brightest pixel of all views is ``peak``."""
+    (its views and ground truth) at ``size`` (width, height); the brightest pixel of all views is ``peak``.
+    ``window``: the source's emission window [A, B) declared as ``source.window`` (None: not declared)."""
     tpl = json.loads((Path(template_scene) / "scene.json").read_text())
     cams = [(v["name"], v["camera"]) for v in tpl["views"]] + [(g["name"], g["camera"]) for g in tpl["ground_truth"]]
     pts = grid.centres().reshape(-1, 3)
@@ -135,5 +144,7 @@ def write_scene(template_scene: Path, out: Path, density: np.ndarray, grid: Grid
              "volume": {"min": list(grid.lo), "max": [float(x) for x in hi]},
              "source": {"center": list(grid.source), "radius": grid.source_radius}, "views": views,
              "ground_truth": []}
+    if window is not None:
+        scene["source"]["window"] = [int(w) if w is not None else None for w in window]
     (out / "scene.json").write_text(json.dumps(scene, indent=1))
     return out

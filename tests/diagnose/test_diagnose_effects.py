@@ -1,12 +1,15 @@
 """diagnose finds an effect hidden in data made by a different solver (tests/diagnose/eulerian_plume.py).
 
 Each test hides one effect (or two) at a magnitude drawn from a seeded range, runs diagnose on 48 frames (train
-0:32, validate 32:48) and requires the right name. Every diagnose here is ``slow`` (each fits both model
-structures: 4-11 min on a 2-core CPU), so ``make test`` runs only the visibility test; ``make test-slow`` runs all. Buoyancy decay, vorticity confinement, viscosity and swirl are ``xfail``: their
+0:32, validate 32:48; the burst 90 frames, 0:60 and 60:90) and requires the right name. Every diagnose here is
+``slow`` (each fits both model structures: 4-11 min on a 2-core CPU), so ``make test`` runs only the visibility
+test; ``make test-slow`` runs all. Buoyancy decay, vorticity confinement, viscosity and swirl are ``xfail``: their
 data differ from a plain plume with the same generator constants (``test_hidden_effects_are_visible``), but
 diagnose does not name them. Buoyancy decay cannot be named from this footage by any model: a plain plume with
-weaker buoyancy matches its training frames (``test_nearest_plain_plume_on_the_training_frames``). The measured
-reasons are in each marker and in docs/diagnose.md.
+weaker buoyancy matches its training frames (``test_nearest_plain_plume_on_the_training_frames``). In a burst (the
+source on for the first part of the window only) it can (``test_nearest_plain_plume_in_a_burst``), and diagnose
+names it there, but with a tau 3x too long (xfail). The measured reasons are in each marker and in
+docs/diagnose.md.
 """
 from __future__ import annotations
 
@@ -28,32 +31,30 @@ FRAMES, TRAIN, VALIDATE = 48, "0:32", "32:48"
 FAST = ["--height", "40", "--evals", "10", "--arch", "cpu"]
 
 
-@pytest.fixture(scope="module")
-def template(tmp_path_factory):
-    out = tmp_path_factory.mktemp("tpl") / "four"
-    result = CliRunner().invoke(main, ["calibrate", "--sample", "scalarflow", "--protocol", "four-view",
-                                       "--out", str(out)])
-    assert result.exit_code == 0, result.output
-    return out
-
-
 def run_diagnose(template, tmp_path, effects: PlumeEffects) -> dict:
     return diagnose_density(template, tmp_path, simulate(FRAMES, effects))
 
 
-def diagnose_density(template, tmp_path, density: np.ndarray) -> dict:
-    """Diagnose a scene of ``density`` [FRAMES, nx, ny, nz] on the generator's grid; checks the outputs' form."""
-    scene = write_scene(template, tmp_path / "scene", density)
+def diagnose_density(template, tmp_path, density: np.ndarray, train: str = TRAIN, validate: str = VALIDATE,
+                     window: tuple | None = None) -> dict:
+    """Diagnose a scene of ``density`` [T, nx, ny, nz] on the generator's grid (``window``: the emission window
+    the scene declares, None: none, and then the source must be on to the end) on the ``train`` and ``validate``
+    frames; checks the outputs' form."""
+    scene = write_scene(template, tmp_path / "scene", density, window=window)
     out = tmp_path / "diag"
-    result = CliRunner().invoke(main, ["diagnose", str(scene), "--out", str(out), "--train-frames", TRAIN,
-                                       "--validate-frames", VALIDATE, *FAST])
+    result = CliRunner().invoke(main, ["diagnose", str(scene), "--out", str(out), "--train-frames", train,
+                                       "--validate-frames", validate, *FAST])
     assert result.exit_code == 0, result.output + repr(result.exception)
     report = json.loads((out / "report.json").read_text())
-    assert set(report) == {"finding", "candidates", "windows", "views", "structure"}
+    assert set(report) == {"finding", "candidates", "windows", "views", "emission", "structure"}
     assert report["structure"]["name"] in ("paper_gas", "ambient_air")
     model = json.loads((out / "model.json").read_text())["model"]
     assert model["structure"]["name"] == report["structure"]["name"]
-    assert report["windows"] == {"train": [0, 32], "validate": [32, 48]}
+    assert report["windows"] == {"train": [int(x) for x in train.split(":")],
+                                 "validate": [int(x) for x in validate.split(":")]}
+    # a declared window is used as declared; every plume here without one is continuous: no false stop
+    assert report["emission"] == ({"window": list(window), "from": "scene"} if window else
+                                  {"window": [0, None], "from": "footage"}), report["emission"]
     assert len(report["views"]) == 5
     assert {c["effect"] for c in report["candidates"]} == {"wind", "buoyancy_decay", "vorticity", "viscosity",
                                                            "dissipation", "swirl"}
@@ -71,24 +72,29 @@ def visibility(template, tmp_path, effects: PlumeEffects, plain: np.ndarray) -> 
     return float(image_error(images, gain * ref).mean())
 
 
-def observe(template, folder, effects: PlumeEffects, grid: Grid = Grid()) -> np.ndarray:
-    """Images [V, T, h, w] of a generated plume at diagnose's observation size."""
-    scene = write_scene(template, folder, simulate(FRAMES, effects, grid), grid)
-    return load_observed(scene, 0, FRAMES, int(FAST[1])).images
+def observe(template, folder, effects: PlumeEffects, grid: Grid = Grid(), frames: int = FRAMES,
+            stop: int | None = None) -> np.ndarray:
+    """Images [V, T, h, w] of a generated plume (``stop``: a burst, eulerian_plume.simulate) at diagnose's
+    observation size."""
+    scene = write_scene(template, folder, simulate(frames, effects, grid, stop), grid)
+    return load_observed(scene, 0, frames, int(FAST[1])).images
 
 
-def nearest_plain_plume(template, folder, images: np.ndarray, evals: int = 14) -> tuple[float, float]:
+def nearest_plain_plume(template, folder, images: np.ndarray, evals: int = 14, train: int = 32,
+                        stop: int | None = None) -> tuple[float, float]:
     """How well a plume WITHOUT any effect can imitate ``images`` [V, T, h, w]: the generator's own buoyancy and
-    inflow speed refitted on the training frames (Nelder-Mead over log factors, brightness gain in closed form),
-    as diagnose fits its model. Returns the image errors (observe.image_error) of the best such plain plume on the
-    training and on the validation frames. A training error near 0 means that no fit on the training frames can
-    tell the effect from a change of the base parameters, whatever the model."""
-    train, val = slice(0, 32), slice(32, FRAMES)
+    inflow speed refitted on the training frames [0, ``train``) (Nelder-Mead over log factors, brightness gain in
+    closed form), as diagnose fits its model; with ``stop`` the plain plume is the same burst. Returns the image
+    errors (observe.image_error) of the best such plain plume on the training and on the validation frames (the
+    rest). A training error near 0 means that no fit on the training frames can tell the effect from a change of
+    the base parameters, whatever the model."""
+    frames = images.shape[1]
+    train, val = slice(0, train), slice(train, frames)
     best = [np.inf, np.inf]
 
     def loss(x):
         grid = Grid(buoyancy=Grid.buoyancy * float(np.exp(x[0])), inflow_speed=Grid.inflow_speed * float(np.exp(x[1])))
-        plain = observe(template, folder, PlumeEffects(), grid)
+        plain = observe(template, folder, PlumeEffects(), grid, frames, stop)
         gain = (images[:, train] * plain[:, train]).sum() / (plain[:, train] ** 2).sum()
         err = image_error(images, gain * plain)
         if err[train].mean() < best[0]:
@@ -211,6 +217,44 @@ def test_nearest_plain_plume_on_the_training_frames(template, tmp_path, effects,
 def test_diagnose_finds_hidden_buoyancy_decay(template, tmp_path, ti_engine):
     tau = decay_tau()
     report = run_diagnose(template, tmp_path, PlumeEffects(tau=tau))
+    assert report["finding"]["effect"] == "buoyancy_decay", report["candidates"]
+    assert abs(report["finding"]["params"]["tau"] - tau) < 0.4 * tau, (report["finding"], tau)
+
+
+# A burst: the source on for frames [0, BURST_STOP) only, then the puff rises on its own; diagnose's default
+# windows (train 0:60, validate 60:90), so that most frames follow the stop (docs/diagnose.md, "Bursts").
+BURST_FRAMES, BURST_STOP, BURST_TRAIN = 90, 24, 60
+
+
+@pytest.mark.slow
+def test_nearest_plain_plume_in_a_burst(template, tmp_path):
+    """In a burst, buoyancy decay is told apart from a weaker buoyancy once the source stops: the closest plain
+    burst (nearest_plain_plume, buoyancy and inflow refitted on frames 0:60; 24 evaluations, 14 stop short at a
+    training error of 0.010) still matches the training frames closely (measured 0.0055; the continuous decay plume
+    1e-4 to 7e-4 over 48 frames and 0.002 over 90) but misses the validation frames by 0.086 (continuous:
+    0.003-0.015, 0.011 over 90 frames)."""
+    images = observe(template, tmp_path / "effect", PlumeEffects(tau=decay_tau()), frames=BURST_FRAMES,
+                     stop=BURST_STOP)
+    train_err, val_err = nearest_plain_plume(template, tmp_path / "plain", images, evals=24, train=BURST_TRAIN,
+                                             stop=BURST_STOP)
+    assert train_err < 0.01 and val_err > 0.04, (train_err, val_err)
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=False, reason="named but tau 2.9-3.4x too long (2026-11-24): the finding is "
+                   "buoyancy_decay (validation gain 35.4 %, 46.1 % at 14 evaluations; the same burst without decay: "
+                   "decay stays off, +0.2 %), but tau 2.67 s (3.2 s) for 0.93: the air structure's base fit takes an "
+                   "inlet of 0.52 m/s (the generator's 0.25) in XSPH c 0.45 with alpha -0.08, so part of the slowing "
+                   "is the inlet's momentum running out in viscous air and the decay refitted on top (with alpha "
+                   "alone) is slower")
+def test_diagnose_finds_buoyancy_decay_in_a_burst(template, tmp_path, ti_engine):
+    """Hidden buoyancy decay (the decay test's draw, tau 0.93 s) in a burst whose scene declares its emission
+    window: diagnose's plumes emit in it too (diagnose_density checks report.json's ``emission``), and it names
+    ``buoyancy_decay`` with tau within 40 %."""
+    tau = decay_tau()
+    density = simulate(BURST_FRAMES, PlumeEffects(tau=tau), stop=BURST_STOP)
+    report = diagnose_density(template, tmp_path, density, f"0:{BURST_TRAIN}", f"{BURST_TRAIN}:{BURST_FRAMES}",
+                              window=(0, BURST_STOP))
     assert report["finding"]["effect"] == "buoyancy_decay", report["candidates"]
     assert abs(report["finding"]["params"]["tau"] - tau) < 0.4 * tau, (report["finding"], tau)
 
