@@ -115,6 +115,12 @@ def divergence(run: Run, frames: list[int], grid: int = DIVERGENCE_GRID) -> dict
             "grid": [int(r) for r in res], "unit": "1/s"}
 
 
+def _summary(scores: dict) -> dict:
+    """Mean PSNR / SSIM / LPIPS over views, with each view's scores under ``per_view``."""
+    return {**{k: _mean(getattr(s, k) for s in scores.values()) for k in ("psnr", "ssim", "lpips")},
+            "per_view": {k: v.to_dict() for k, v in scores.items()}}
+
+
 PREDICTION_KINDS = ("predict", "interact")
 
 
@@ -149,13 +155,8 @@ def prediction(run: Run, lpips_weights=None, backdrop: Backdrop | None = None) -
         behind = backdrop.behind(cam)
         rendered = [render_state(s, gt.camera_at(t).scaled(run.resolution), behind) for s, t in zip(states, frames)]
         novel[gt.name] = _score(rendered, real(gt.video, cam, frames), lpips_weights)
-
-    def summary(scores: dict) -> dict:
-        return {**{k: _mean(getattr(s, k) for s in scores.values()) for k in ("psnr", "ssim", "lpips")},
-                "per_view": {k: v.to_dict() for k, v in scores.items()}}
-
-    return {"frames": [frames[0], frames[-1] + 1], "start_frame": start, "input_view": summary(input_scores),
-            "repeat_last_input_view": summary(repeat_scores), "novel_views": summary(novel)}
+    return {"frames": [frames[0], frames[-1] + 1], "start_frame": start, "input_view": _summary(input_scores),
+            "repeat_last_input_view": _summary(repeat_scores), "novel_views": _summary(novel)}
 
 
 def evaluate(run: Run, lpips_weights=None, backdrop: Backdrop | None = None) -> dict:
@@ -182,10 +183,8 @@ def evaluate(run: Run, lpips_weights=None, backdrop: Backdrop | None = None) -> 
             resim_scores[gt.name] = _score([render_state(s, c, behind) for s, c in zip(resim, cams)], truth,
                                            lpips_weights)
             bar.advance()
-    mean = {k: _mean(getattr(s, k) for s in per_view.values()) for k in ("psnr", "ssim", "lpips")}
-    resim_mean = {k: _mean(getattr(s, k) for s in resim_scores.values()) for k in ("psnr", "ssim", "lpips")}
-    result = {"novel_view": {**mean, "per_view": {k: v.to_dict() for k, v in per_view.items()}},
-              "resimulation": {**resim_mean, "per_view": {k: v.to_dict() for k, v in resim_scores.items()}}, "divergence": divergence(run, frames),
+    result = {"novel_view": _summary(per_view), "resimulation": _summary(resim_scores),
+              "divergence": divergence(run, frames),
               "frames": [frames[0], frames[-1] + 1],
               "resolution": {"scale": run.resolution, "width": cam.width, "height": cam.height}}
     if run.info.get("kind") in PREDICTION_KINDS:

@@ -48,6 +48,12 @@ class Volume:
 UP = (0.0, 1.0, 0.0)
 
 
+def in_window(window: tuple[int, int | None], frame: int) -> bool:
+    """Whether ``frame`` lies in the emission window [A, B) (B None: to the end)."""
+    start, stop = window
+    return start <= frame and (stop is None or frame < stop)
+
+
 @dataclass(frozen=True)
 class Source:
     """The smoke inflow: a disk of ``radius`` metres centred at ``center``, perpendicular to the unit vector
@@ -62,10 +68,7 @@ class Source:
 
     def emits_at(self, frame: int) -> bool:
         """Whether the source is on at scene frame ``frame``."""
-        if self.window is None:
-            return True
-        start, stop = self.window
-        return start <= frame and (stop is None or frame < stop)
+        return self.window is None or in_window(self.window, frame)
 
     @property
     def velocity(self) -> tuple[float, float, float]:

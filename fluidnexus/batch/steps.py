@@ -45,8 +45,8 @@ def command(step: str) -> click.Command:
     from cli.show import evaluate
     from cli.synth import synth
 
-    return {PREPARE: calibrate, "background": background, "synth": synth, "refine": refine, "recon": recon, "eval": evaluate,
-            "predict": predict, "diagnose": diagnose}[step]
+    return {PREPARE: calibrate, "background": background, "synth": synth, "refine": refine, "recon": recon,
+            "eval": evaluate, "predict": predict, "diagnose": diagnose}[step]
 
 
 def settable(step: str) -> dict[str, click.Option]:

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fluidnexus.scene import in_window
+
 from .observe import Observed
 
 #: The source region counts as emptied below this fraction of its peak smoke (a continuous plume's region holds
@@ -36,7 +38,7 @@ class Emission:
 
     def emits_at(self, frame: int) -> bool:
         """Whether the step into scene frame ``frame`` emits (scene.Source.emits_at's convention)."""
-        return self.start <= frame and (self.stop is None or frame < self.stop)
+        return in_window((self.start, self.stop), frame)
 
     def to_dict(self) -> dict:
         return {"window": [self.start, self.stop], "from": self.source}

@@ -163,7 +163,8 @@ def _emission_text(emission, last: int) -> str:
                 f"to frame {last}, so the source is taken to emit throughout (frames {emission.start}-{last}).")
     return (f"The scene declares no emission window. In the footage new smoke stops appearing at the source after "
             f"frame {emission.stop - 1}: the smoke around it falls below {100 * EMPTY:.0f} % of its peak and stays "
-            f"there to frame {last}. The simulated plumes emit from frame {emission.start} to frame {emission.stop - 1} only.")
+            f"there to frame {last}. The simulated plumes emit from frame {emission.start} to frame "
+            f"{emission.stop - 1} only.")
 
 
 def _markdown(report, observed, bases, structure, fits, judged, finding, va, plots, fitter, spread, emission,

@@ -137,7 +137,8 @@ def test_calibration_in_air_searches_alpha_alone(start_run):
     ctx = dataclasses.replace(ctx, model=AIR)
     hidden = with_buoyancy_drag(AIR, 2 * AIR.term("buoyancy").alpha, None)
     states = list(rollout(start, 5, workspace_for(start, 5, ctx, hidden), ctx))
-    cameras = [v.camera.scaled(open_run(start_run).resolution) for v in open_run(start_run).scene(check_videos=False).views[:2]]
+    run = open_run(start_run)
+    cameras = [v.camera.scaled(run.resolution) for v in run.scene(check_videos=False).views[:2]]
     truth = [np.stack([render_state(s.to_state(), cam) for s in states]) for cam in cameras]
     model, candidates = search(start, cameras, truth, ctx)
     assert model == hidden and all(c["k"] is None for c in candidates) and len(candidates) == 4, candidates
