@@ -93,7 +93,8 @@ def run_predict(run_dir: Path, steps: int) -> None:
         for smoke in frames:
             pass
         wall, cpu = (time.perf_counter() - t) / steps * 1000.0, (time.process_time() - c) / steps * 1000.0
-        print(f"| {'paper_gas' if air is None else air.name} | {wall:.1f} | {cpu:.1f} | {smoke.p.shape[0]} | {ws.sim.n} |")
+        name = "paper_gas" if air is None else air.name
+        print(f"| {name} | {wall:.1f} | {cpu:.1f} | {smoke.p.shape[0]} | {ws.sim.n} |")
 
 
 def main() -> None:

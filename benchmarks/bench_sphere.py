@@ -106,7 +106,8 @@ def main() -> None:
         nv, rs = scores["novel_view"]["per_view"][name], scores["resimulation"]["per_view"][name]
         ref = result["references"][name]
         print(f"{name}: NVS {nv['psnr']:.2f} dB / SSIM {nv['ssim']:.3f}; re-simulation {rs['psnr']:.2f} dB / "
-              f"{rs['ssim']:.3f}; white {ref['white']['psnr']:.2f} dB, frame 0 held {ref['frame0_held']['psnr']:.2f} dB")
+              f"{rs['ssim']:.3f}; white {ref['white']['psnr']:.2f} dB, "
+              f"frame 0 held {ref['frame0_held']['psnr']:.2f} dB")
     print(f"re-simulation {scores['resimulation']['psnr']:.2f} dB; ball {ball}; steps {steps}")
 
 
