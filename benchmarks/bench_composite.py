@@ -3,15 +3,15 @@
     .venv/bin/python benchmarks/bench_composite.py --work /tmp/composite --protocol four-view|single-view \
         [--frames 120] [-- extra recon options]
 
-The backdrop is the test scene's (tests/recon/backdrop_scene.py): a plane of gray waves 0.75 m behind the sample's
+The backdrop is the test scene's (tests/recon/backdrop_scene.py): a plane of gray waves 0.1 m behind the sample's
 volume, ray cast per camera; the sample's glowing smoke is composited over it as white smoke of opacity S,
 ``I = S + B (1 - S)``. The input views get their true plates (``fluidnexus background --plate``).
 
 - ``four-view``: train00, train01, train03, train04 in; train02 held out, its truth composited too (its backdrop comes
   from the static layer). Compare with the four-view protocol on black (BENCHMARKS.md).
 - ``single-view``: train02 in (composited, with its plate); the four others are synthesised from its smoke layer
-  (``synth``, ``refine``) and scored, as smoke layers, against the real footage on black. Compare with the
-  single-view protocol on black (BENCHMARKS.md).
+  (``synth``, ``refine``; ``--smoke-color`` gives synth the smoke's colour instead of its estimate) and scored, as
+  smoke layers, against the real footage on black. Compare with the single-view protocol on black (BENCHMARKS.md).
 
 Every step is a CLI command in a fresh process; the scores are ``WORK/eval.json``; ``WORK/videos`` has the
 side-by-side comparisons.
@@ -82,6 +82,7 @@ def main() -> None:
     parser.add_argument("--work", type=Path, required=True)
     parser.add_argument("--protocol", choices=["four-view", "single-view"], required=True)
     parser.add_argument("--frames", type=int, default=120)
+    parser.add_argument("--smoke-color", help="single-view: synth --smoke-color (the composite's smoke: 1,1,1)")
     parser.add_argument("recon", nargs="*", help="extra recon options (after --)")
     args = parser.parse_args()
     work, log, seconds = args.work, args.work / "log.txt", {}
@@ -91,7 +92,7 @@ def main() -> None:
         step(["background", scene, *[t for n in inputs for t in ("--plate", f"{n}={work / 'plates' / (n + '.png')}")]],
              log, seconds)
     if args.protocol == "single-view" and not (scene / "videos" / "train00_synth.mp4").exists():
-        step(["synth", scene], log, seconds)
+        step(["synth", scene, *(["--smoke-color", args.smoke_color] if args.smoke_color else [])], log, seconds)
         step(["refine", scene], log, seconds)
     resume = ["--resume"] if (run / "config.json").exists() else []
     step(["recon", scene, "--out", run, "--arch", "cpu", *resume, *args.recon], log, seconds)

@@ -10,21 +10,9 @@ import numpy as np
 from fluidnexus.errors import InputError
 from fluidnexus.scene import SCENE_FILE, load_scene
 
+from .options import parse_color
+
 log = logging.getLogger("fluidnexus")
-
-
-def parse_color(text: str | None) -> np.ndarray | None:
-    """``--color R,G,B`` with each value in [0, 1]."""
-    if text is None:
-        return None
-    try:
-        values = np.array([float(v) for v in text.split(",")], np.float32)
-    except ValueError:
-        values = np.array([])
-    if values.shape != (3,) or not np.all(np.isfinite(values)) or values.min() < 0 or values.max() > 1:
-        raise InputError(None, "--color", f"expected R,G,B with each value in [0, 1] (e.g. 1,1,1 for white), "
-                                          f"got {text!r}")
-    return values
 
 
 def parse_plates(items: tuple[str, ...], scene, views) -> dict[str, tuple[Path, np.ndarray]]:
@@ -80,7 +68,7 @@ def background(scene_dir: Path, plates: tuple[str, ...], color: str | None, reso
     if not views:
         raise InputError(scene.root / SCENE_FILE, "views", "the scene has no input view with a video")
     given = parse_plates(plates, scene, views)
-    known = parse_color(color)
+    known = parse_color(color, "--color")
     if known is None and scene.backdrop_color is not None:
         known = np.asarray(scene.backdrop_color, np.float32)
     if (scene.backgrounds or (scene.root / FOLDER).exists()) and not overwrite:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import click
+import numpy as np
 
 from fluidnexus.errors import InputError
 
@@ -52,3 +53,17 @@ def load_model_file(path, ambient_air: bool):
                          "(ambient_air), which predict and interact simulate: reconstruct without it and pass it "
                          "to predict or interact")
     return model
+
+
+def parse_color(text: str | None, option: str) -> np.ndarray | None:
+    """``R,G,B`` with each value in [0, 1] (an ``option`` such as ``--color``); None when not given."""
+    if text is None:
+        return None
+    try:
+        values = np.array([float(v) for v in text.split(",")], np.float32)
+    except ValueError:
+        values = np.array([])
+    if values.shape != (3,) or not np.all(np.isfinite(values)) or values.min() < 0 or values.max() > 1:
+        raise InputError(None, option, f"expected R,G,B with each value in [0, 1] (e.g. 1,1,1 for white), "
+                                       f"got {text!r}")
+    return values

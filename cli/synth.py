@@ -11,7 +11,7 @@ from fluidnexus.errors import InputError
 from fluidnexus.scene import View, load_scene, save_views
 from fluidnexus.video import read_video, write_video
 
-from .options import max_memory_option
+from .options import max_memory_option, parse_color
 
 log = logging.getLogger("fluidnexus")
 
@@ -49,9 +49,10 @@ def read_footage(path: Path, size: tuple[int, int] | None = None) -> np.ndarray:
     return video
 
 
-def smoke_only(scene, source, footage: np.ndarray) -> tuple[np.ndarray, dict]:
+def smoke_only(scene, source, footage: np.ndarray, color: np.ndarray | None) -> tuple[np.ndarray, dict]:
     """The smoke layer of ``source``'s footage [T, h, w, C] over its plate (docs/background.md, "Smoke layer for a
-    single video"), premultiplied over black, and its provenance record."""
+    single video"), premultiplied over black, and its provenance record; ``color`` [3]: the smoke's colour as the
+    user gives it (None: estimated)."""
     from fluidnexus.backdrop import resize_image, to_channels
     from fluidnexus.background.smoke_layer import NoSmoke, smoke_layer
     from fluidnexus.background.store import read_plate
@@ -61,13 +62,15 @@ def smoke_only(scene, source, footage: np.ndarray) -> tuple[np.ndarray, dict]:
     plate = to_channels(resize_image(plate, width, height), footage.shape[-1])
     confidence = resize_image(confidence[..., None], width, height)[..., 0]
     record = scene.backgrounds[source.name].plate
+    known = None if color is None else to_channels(color, footage.shape[-1])
     try:
-        smoke = smoke_layer(footage, plate, confidence)
+        smoke = smoke_layer(footage, plate, confidence, known)
     except NoSmoke as err:
         raise InputError(scene.video_path(source), None, f"shows no smoke over its plate {record} ({err})") from None
     log.info("synth: smoke layer of %s over %s: colour %s, ill-conditioned pixels %.1f%%", source.name, record,
              smoke.summary()["smoke_color"], 100 * smoke.ill_conditioned)
-    return smoke.layer, {"over": "black", "input_plate": record, **smoke.summary()}
+    return smoke.layer, {"over": "black", "input_plate": record, **smoke.summary(),
+                         "smoke_color_from": "estimated" if color is None else "--smoke-color"}
 
 
 @click.command()
@@ -81,14 +84,18 @@ def smoke_only(scene, source, footage: np.ndarray) -> tuple[np.ndarray, dict]:
 @click.option("--seed", type=int, default=0, show_default=True, help="zero123: noise seed.")
 @click.option("--device", type=click.Choice(["auto", "cpu", "cuda"]), default="auto", show_default=True,
               help="zero123: torch device.")
+@click.option("--smoke-color", metavar="R,G,B",
+              help="With a plate: the smoke's colour where it is opaque, values in [0, 1] (white steam: 1,1,1), when "
+                   "known; default: the colour of the densest smoke, taken as opaque.")
 @resolution_option
 @max_memory_option
 def synth(scene_dir: Path, method: str, weights: Path | None, input_name: str | None, steps: int, guidance: float,
-          seed: int, device: str, resolution: str, max_memory: str) -> None:
+          seed: int, device: str, smoke_color: str | None, resolution: str, max_memory: str) -> None:
     """Synthesise a video for every novel view of SCENE from its input view.
 
     Where the input view has a clean plate (fluidnexus background), its smoke layer is synthesised instead of the
-    raw frames: the novel videos show the smoke alone over black.
+    raw frames: the novel videos show the smoke alone over black. The smoke's colour is that of its densest part,
+    or --smoke-color when known.
 
     \b
     fluidnexus synth scene                       # axisym, runs anywhere
@@ -101,6 +108,7 @@ def synth(scene_dir: Path, method: str, weights: Path | None, input_name: str | 
     from .recon import resolve_resolution
 
     limit = parse_limit(max_memory)
+    known_color = parse_color(smoke_color, "--smoke-color")
     scene = load_scene(scene_dir)
     inputs = scene.with_role("input")
     if not inputs:
@@ -126,7 +134,10 @@ def synth(scene_dir: Path, method: str, weights: Path | None, input_name: str | 
     footage = read_footage(scene.video_path(source), (camera.width, camera.height))
     smoke = None  # the smoke layer's provenance record, with a plate
     if source.name in scene.backgrounds:
-        footage, smoke = smoke_only(scene, source, footage)
+        footage, smoke = smoke_only(scene, source, footage, known_color)
+    elif known_color is not None:
+        raise InputError(None, "--smoke-color", f"input view {source.name!r} has no plate: there is no smoke layer "
+                                                "to separate (fluidnexus background first)")
     inp = SynthesisInput(footage, camera, scene.source, scene.volume)
     done = {}
     for view in novel:

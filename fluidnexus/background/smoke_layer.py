@@ -14,7 +14,9 @@ under A itself, found by a fixed-point iteration that starts from the samples fa
 samples farthest from the plate are not simply the densest (a sample over a backdrop far from A differs more at
 the same opacity); the fixed point picks the samples that lie beyond all others along their line from B through A.
 Smoke that is never opaque yields the colour of its densest part, a mix of A and the backdrop behind it, and
-opacities scaled up to match (their product with ``A - B`` is what the footage fixes).
+opacities scaled up to match (their product with ``A - B`` is what the footage fixes); over a plain backdrop that
+is the same layer, over a textured one the layer carries some of the texture and is too bright or too dark. A
+user who knows the smoke's colour (white steam) gives it instead (``color``; ``synth --smoke-color``).
 
 **Ill-conditioned pixels**, where the plate is close to the smoke's colour (``|A - B| < MIN_CONTRAST``), do not
 show the smoke: there the denominator is held at ``MIN_CONTRAST^2``, so noise is amplified at most
@@ -72,7 +74,8 @@ class SmokeLayer:
                 "ill_conditioned_fraction": round(self.ill_conditioned, 4), "noise_floor": round(self.noise_floor, 4)}
 
 
-def smoke_layer(video: np.ndarray, plate: np.ndarray, confidence: np.ndarray) -> SmokeLayer:
+def smoke_layer(video: np.ndarray, plate: np.ndarray, confidence: np.ndarray,
+                color: np.ndarray | None = None) -> SmokeLayer:
     """Separate the smoke of ``video`` from its clean plate (module docstring).
 
     Args:
@@ -80,6 +83,7 @@ def smoke_layer(video: np.ndarray, plate: np.ndarray, confidence: np.ndarray) ->
         plate: [H, W, C] float32 in [0, 1], its clean plate.
         confidence: [H, W] in [0, 1], the plate's confidence; only confident pixels (>= 0.5) estimate the colour,
             unless too few of them show smoke.
+        color: [C] the smoke's colour A when the user knows it (white steam: 1); None: the densest smoke's.
 
     Raises:
         NoSmoke: the video never differs from the plate by more than the noise floor.
@@ -89,7 +93,8 @@ def smoke_layer(video: np.ndarray, plate: np.ndarray, confidence: np.ndarray) ->
     plate = np.asarray(plate, np.float32)
     floor = max(MIN_CHANGE, NOISE_FACTOR * noise_level(video))
     chunk = max(1, CHUNK_VALUES // plate.size)
-    color = _dense_color(*_smoke_samples(video, plate, confidence >= CONFIDENT, floor, chunk))
+    samples = _smoke_samples(video, plate, confidence >= CONFIDENT, floor, chunk)  # NoSmoke when there is none
+    color = _dense_color(*samples) if color is None else np.asarray(color, np.float32).reshape(plate.shape[-1])
     step = color - plate  # [H, W, C]
     contrast2 = (step * step).sum(axis=-1)
     weight = step / np.maximum(contrast2, MIN_CONTRAST ** 2)[..., None]

@@ -1,12 +1,15 @@
-"""When the source emits: the scene's declared emission window, or when new smoke stops appearing at the source
-in the footage (docs/diagnose.md, "Bursts: sources that stop").
+"""When the source emits: the scene's declared emission window, or when new smoke starts and stops appearing at the
+source in the footage (docs/diagnose.md, "Bursts: sources that stop").
 
 The footage rule: in each view, the smoke in a small region around the projected source (the source disk's
 column up to one source radius above it, as wide as the disk) is summed per frame and divided by its largest
 value; the views' mean is the source signal. A source that keeps emitting keeps that region replenished; one that
 stops lets it empty as the last smoke rises away. The source is taken to have stopped when the signal stays below
 :data:`EMPTY` from some frame to the last one, for at least :data:`MIN_EMPTY_FRAMES` frames; the stop is where the
-fall into that empty stretch begins in earnest (:func:`stop_from_footage`). Otherwise it emits to the end.
+fall into that empty stretch begins in earnest (:func:`stop_from_footage`). Otherwise it emits to the end. In the
+same way it starts late when the signal stays below :data:`EMPTY` from the first frame for at least
+:data:`MIN_EMPTY_FRAMES` frames before it rises: the start is where that rise begins in earnest
+(:func:`start_from_footage`). Otherwise it emits from the first observed frame.
 """
 from __future__ import annotations
 
@@ -30,7 +33,8 @@ STEEP = 0.5
 @dataclass(frozen=True)
 class Emission:
     """The emission window [start, stop) in scene frames (stop None: to the end) and where it came from
-    (``scene``: declared as ``source.window``; ``footage``: found by :func:`stop_from_footage`)."""
+    (``scene``: declared as ``source.window``; ``footage``: found by :func:`start_from_footage` and
+    :func:`stop_from_footage`)."""
 
     start: int
     stop: int | None
@@ -46,12 +50,14 @@ class Emission:
 
 def emission_window(source, observed: Observed, center, radius: float) -> Emission:
     """The scene's declared window if ``source`` (scene.Source or None) has one, else the footage's: emitting from
-    the first observed frame until :func:`stop_from_footage`. ``center``, ``radius``: the source disk [m]."""
+    :func:`start_from_footage` until :func:`stop_from_footage`. ``center``, ``radius``: the source disk [m]."""
     if source is not None and source.window is not None:
         return Emission(source.window[0], source.window[1], "scene")
     direction = source.direction if source is not None else (0.0, 1.0, 0.0)
-    stop = stop_from_footage(source_signal(observed, center, radius, direction))
-    return Emission(observed.first, None if stop is None else observed.first + stop, "footage")
+    signal = source_signal(observed, center, radius, direction)
+    stop = stop_from_footage(signal)
+    return Emission(observed.first + start_from_footage(signal), None if stop is None else observed.first + stop,
+                    "footage")
 
 
 def source_signal(observed: Observed, center, radius: float, direction=(0.0, 1.0, 0.0)) -> np.ndarray:
@@ -87,3 +93,20 @@ def stop_from_footage(signal: np.ndarray) -> int | None:
         peak -= 1
     decline = falls[peak:empty]  # the falls into frames peak + 1 .. empty
     return peak + 1 + int(np.argmax(decline >= STEEP * decline.max()))
+
+
+def start_from_footage(signal: np.ndarray) -> int:
+    """Index of the first frame with new smoke from a source signal [T] (:func:`source_signal`). Up to the first
+    frame at :data:`EMPTY` x the peak, the steep part of the rise is the steepest per-frame rise and the frames
+    before it that rise by at least :data:`STEEP` x as much (smoke drifting in from elsewhere rises slowly, a
+    source switching on fast); its first frame is the start when at least :data:`MIN_EMPTY_FRAMES` frames come
+    before it, else 0 (a source on from the first frame rises at once, however long the region takes to fill)."""
+    signal = np.asarray(signal, float)
+    full = np.flatnonzero(signal >= EMPTY * max(float(signal.max()), 1e-12))
+    if not len(full) or full[0] == 0:
+        return 0
+    rises = signal[1:int(full[0]) + 1] - signal[:int(full[0])]  # rises[t - 1]: the rise into frame t
+    start = int(np.argmax(rises)) + 1
+    while start > 1 and rises[start - 2] >= STEEP * rises.max():
+        start -= 1
+    return start if start >= MIN_EMPTY_FRAMES else 0

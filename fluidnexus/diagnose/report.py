@@ -152,19 +152,26 @@ def _structure_text(report, observed, bases, structure, plots, va) -> list[str]:
             f"frames; each structure's base model refitted on the training frames. Base model: {text}.)", ""]
 
 
-def _emission_text(emission, last: int) -> str:
-    """report.md's sentence on when the source emits (emission.Emission; ``last``: the last frame diagnosed)."""
+def _emission_text(emission, first: int, last: int) -> str:
+    """report.md's sentence on when the source emits (emission.Emission; ``first``, ``last``: the first and last
+    frames diagnosed)."""
     if emission.source == "scene":
         until = "to the end" if emission.stop is None else f"until frame {emission.stop - 1}"
         return (f"The source emits from frame {emission.start} {until}, as the scene declares "
                 "(`source.window`); the simulated plumes emit only then.")
+    text = "The scene declares no emission window. "
+    if emission.start > first:
+        text += (f"In the footage new smoke first appears at the source at frame {emission.start}: before it the "
+                 f"smoke around the source stays below {100 * EMPTY:.0f} % of its peak. ")
     if emission.stop is None:
-        return (f"The scene declares no emission window. In the footage the smoke at the source is replenished up "
-                f"to frame {last}, so the source is taken to emit throughout (frames {emission.start}-{last}).")
-    return (f"The scene declares no emission window. In the footage new smoke stops appearing at the source after "
-            f"frame {emission.stop - 1}: the smoke around it falls below {100 * EMPTY:.0f} % of its peak and stays "
-            f"there to frame {last}. The simulated plumes emit from frame {emission.start} to frame "
-            f"{emission.stop - 1} only.")
+        if emission.start > first:
+            return text + (f"From then on it is replenished up to frame {last}; the simulated plumes emit from "
+                           f"frame {emission.start} on.")
+        return text + (f"In the footage the smoke at the source is replenished up to frame {last}, so the source is "
+                       f"taken to emit throughout (frames {emission.start}-{last}).")
+    return text + (f"In the footage new smoke stops appearing at the source after frame {emission.stop - 1}: the "
+                   f"smoke around it falls below {100 * EMPTY:.0f} % of its peak and stays there to frame {last}. "
+                   f"The simulated plumes emit from frame {emission.start} to frame {emission.stop - 1} only.")
 
 
 def _markdown(report, observed, bases, structure, fits, judged, finding, va, plots, fitter, spread, emission,
@@ -178,7 +185,8 @@ def _markdown(report, observed, bases, structure, fits, judged, finding, va, plo
              f"Views used ({len(observed.names)}): {', '.join(observed.names)}. Training frames "
              f"{report['windows']['train'][0]}:{report['windows']['train'][1]}, validation frames "
              f"{report['windows']['validate'][0]}:{report['windows']['validate'][1]} (half-open). "
-             f"{fitter.evaluations} rollouts, {seconds:.0f} s.", "", _emission_text(emission, last), ""]
+             f"{fitter.evaluations} rollouts, {seconds:.0f} s.", "",
+             _emission_text(emission, observed.first, last), ""]
     lines += _structure_text(report, observed, bases, structure, plots, va)
     lines += ["## What the base model gets wrong", "",
               f"Base model ({_base_text(base.params)}) fitted on the "

@@ -143,12 +143,12 @@ def physics_step(smoke: Smoke, ws: Workspace, ctx: RunContext, look=None) -> Smo
     smoke = replace(smoke)  # emit appends to its argument
     emit(smoke, ctx.source, ctx.config, t, look)
     p, u = ws.simulate(smoke.p, smoke.u, smoke.age)
+    kept = ~ws.isolated(p)  # the visual particles move with the particles the frame keeps (as in recon)
+    p, u, age = p[kept], u[kept], (smoke.age + ws.dt)[kept]
     with torch.no_grad():
         x = engine.advect(smoke.x, p, u, ws.dt, ws.advect_query)
     x = ws.push_out(x)
-    out = Smoke(t, p, u, smoke.age + ws.dt, x, smoke.color, smoke.scale, smoke.rotation, smoke.opacity)
-    out.keep_physical(~ws.isolated(out.p))
-    return out
+    return Smoke(t, p, u, age, x, smoke.color, smoke.scale, smoke.rotation, smoke.opacity)
 
 
 def rollout(start: Smoke, frames: int, ws: Workspace, ctx: RunContext, obstacle=None) -> Iterator[Smoke]:

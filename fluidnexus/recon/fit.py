@@ -117,13 +117,17 @@ def fit_positions(smoke: Smoke, views: Views, cfg: ReconConfig, generator: torch
 class DynamicsResult:
     p: torch.Tensor
     u: torch.Tensor
+    age: torch.Tensor
     x: torch.Tensor
     losses: dict
 
 
 def fit_dynamics(prev: Smoke, ws: Workspace, views: Views, cfg: ReconConfig, generator: torch.Generator,
-                 progress=None, watch: Stopwatch = _IDLE) -> DynamicsResult:
-    """Stage 1 at one frame: optimise p_t from p_sim = Sim(u_{t-1}, p_{t-1}); return p_t, u_t, x_t."""
+                 keep=None, progress=None, watch: Stopwatch = _IDLE) -> DynamicsResult:
+    """Stage 1 at one frame: optimise p_t from p_sim = Sim(u_{t-1}, p_{t-1}); return p_t, u_t, their ages and
+    x_t. ``keep`` (p [N, 3] -> [N] bool) selects the physical particles the frame keeps; x_t is advected by those
+    alone, so that the saved velocity field is exactly the one that moved the visual particles (the
+    re-simulation of ``eval`` replays it)."""
     dt, rho0 = ws.dt, ws.solver.rest_density
     p_prev, x_prev = prev.p.detach(), prev.x.detach()
     with watch.measure("simulation"):
@@ -155,8 +159,11 @@ def fit_dynamics(prev: Smoke, ws: Workspace, views: Views, cfg: ReconConfig, gen
     with torch.no_grad():
         p = ws.push_out(p.detach())  # with an obstacle, nothing ends the frame inside it
         u = (p - p_prev) / dt
+        if keep is not None:
+            kept = keep(p)
+            p, u, age = p[kept], u[kept], age[kept]
         x = ws.push_out(engine.advect(x_prev, p, u, dt, ws.advect_query))
-    return DynamicsResult(p, u, x, {k: float(v.detach()) for k, v in terms.items()})
+    return DynamicsResult(p, u, age, x, {k: float(v.detach()) for k, v in terms.items()})
 
 
 def _logit(v: torch.Tensor) -> torch.Tensor:

@@ -272,9 +272,9 @@ def _one_frame(prev: Smoke, t, source, obs, ws, cfg, bar, watch, out, volume) ->
     emit(prev, source, cfg, t)
     try:
         with watch.measure("dynamics"):
-            dyn = fit_dynamics(prev, ws, views, cfg, frame_generator(cfg.seed, t), bar, watch)
-        smoke = Smoke(t, dyn.p, dyn.u, prev.age + ws.dt, dyn.x, prev.color, prev.scale, prev.rotation, prev.opacity)
-        smoke.keep_physical(~ws.isolated(smoke.p) & inside(smoke.p, volume, ws.solver.h))
+            dyn = fit_dynamics(prev, ws, views, cfg, frame_generator(cfg.seed, t),
+                               lambda p: ~ws.isolated(p) & inside(p, volume, ws.solver.h), bar, watch)
+        smoke = Smoke(t, dyn.p, dyn.u, dyn.age, dyn.x, prev.color, prev.scale, prev.rotation, prev.opacity)
         with watch.measure("appearance"):
             losses = fit_appearance(smoke, views, cfg, frame_generator(cfg.seed, t), bar, watch)
     except FloatingPointError as err:

@@ -65,17 +65,17 @@ def fit_scenery(scene: Scene, declared: Scenery, cameras: dict, channels: int, i
     """
     if not scene.backgrounds or scene.volume is None:
         return declared
-    cams, plates, confidences = plates_at(scene, cameras, channels)
     if saved is not None and saved.is_file():
+        cams = [camera for name, camera in cameras.items() if name in scene.backgrounds]
         layer = load_static(saved)
         log.info("static layer: %d Gaussians read from %s", len(layer), saved)
     else:
+        cams, plates, confidences = plates_at(scene, cameras, channels)
         layer = fit_static(cams, plates, confidences, scene.volume.min, scene.volume.max,
                            StaticConfig(iterations=iterations, seed=seed))
         log.info("static layer: %d Gaussians fitted to %d plates (loss %.4g)", len(layer), len(cams),
                  layer.info["loss"])
-    found = refine_balls(find_obstacles(layer, cams, scene.volume.min, scene.volume.max), layer, cams, plates,
-                         confidences)
+    found = refine_balls(find_obstacles(layer, cams, scene.volume.min, scene.volume.max), layer, cams)
     found = merge_with_declared(found, declared.obstacle)
     for body in found:
         log.info("obstacle found in the footage: centre %s, radius %.4g m%s", np.round(body.center, 4),

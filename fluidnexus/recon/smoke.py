@@ -70,9 +70,3 @@ class Smoke:
         removed = int((~mask).sum())
         self.p, self.u, self.age = self.p[mask], self.u[mask], self.age[mask]
         return removed
-
-    def keep_visual(self, mask: torch.Tensor) -> int:
-        removed = int((~mask).sum())
-        self.x, self.color, self.scale = self.x[mask], self.color[mask], self.scale[mask]
-        self.rotation, self.opacity = self.rotation[mask], self.opacity[mask]
-        return removed

@@ -3,14 +3,15 @@ plates with the project's splat renderer (issue 16, part 3; docs/static-layer.md
 
 The fit is a small 3D Gaussian splatting optimisation (Kerbl et al. 2023):
 
-- **Initialisation**, sized by the scene's volume: a lattice of faint Gaussians filling the volume (coloured by
-  the mean of the plates where the views see each node), and for each
-  camera a grid of rays through its image, each seeding one Gaussian where the views agree best along it (a plane
-  sweep over depths from the volume's near side out to a shell ``shell`` half-diagonals of the volume from its
-  centre: the depth of least colour variance across the plates that see it), with the plates' mean colour there.
-  A ray or lattice node showing the plates' median colour (within ``plain``) seeds nothing: a plain colour has no depth, and the
-  learned background colour already shows it (a white backdrop is not filled with white Gaussians).
-  What lies beyond every Gaussian is one learned colour (initialised to the plates' median).
+- **Initialisation** (seeds of opacity ``initial_opacity``, each as wide as its spacing): for each camera a jittered
+  grid of rays through its image, each seeding one Gaussian with its plate's colour at the depth plane-sweep
+  stereo finds and another view confirms (``fluidnexus.static.stereo``); the lattice nodes of the volume that no
+  view sees through (``fluidnexus.static.hull``: a surface without texture, which the stereo cannot place); a ray
+  without a confirmed depth seeds on a shell ``shell`` half-diagonals beyond the volume's centre when its view
+  shows a textured backdrop (which hides the seed from other cameras), and nothing otherwise. A ray or node
+  showing the plates' median colour (within ``plain``) seeds nothing: a plain colour has no depth, and the learned
+  background colour already shows it (a white backdrop is not filled with white Gaussians). What lies beyond
+  every Gaussian is one learned colour (initialised to the plates' median).
 - **Loss** per view: ``0.8 L1 + 0.2 (1 - SSIM)`` (the reconstruction's image loss) weighted by the plate's
   confidence w: the target is ``w plate + (1 - w) render`` and the render's gradient is scaled by w (the render's
   share held fixed), so a pixel of confidence 0 (smoke that never left) pulls nothing and what the plate shows
@@ -44,6 +45,8 @@ from ..errors import InputError
 from ..progress import progress
 from ..recon.losses import image_loss
 from ..scene_scale import box_size
+from .hull import hull_points, in_box
+from .stereo import DepthMap, StereoConfig, depth_maps
 
 STATIC_FILE = "static.npz"
 FORMAT = "fluidnexus-static/1"
@@ -54,12 +57,14 @@ class StaticConfig:
     """Settings of a static-layer fit. Lengths are fractions of the volume's size (cube root of its volume)."""
 
     iterations: int = 400
-    lattice: int = 6  # Gaussians per axis of the volume lattice
     rays: int = 32  # rays per image side per view
-    depths: int = 48  # candidate depths per ray of the plane sweep, from the volume's near side to the shell
-    shell: float = 2.0  # the outermost seeds lie this many half-diagonals from the volume's centre
+    lattice: int = 24  # nodes along the volume's size for the seeds no view sees through (fluidnexus.static.hull)
+    stereo: StereoConfig = StereoConfig()  # the seeds' depths (fluidnexus.static.stereo)
+    shell: float = 2.0  # seeds without a confirmed depth lie this many half-diagonals beyond the volume's centre
+    backdrop: float = 0.05  # a view shows a textured backdrop when this share of its pixels has a confirmed depth
+    # outside the volume
     plain: float = 0.03  # rays whose colour is within this of the plates' median colour seed nothing
-    initial_opacity: float = 0.1
+    initial_opacity: float = 0.5
     lr_position: float = 2e-3  # x the volume's size per step
     lr_scale: float = 0.01
     lr_rotation: float = 0.002
@@ -116,7 +121,7 @@ def inside_volume(layer: StaticLayer) -> StaticLayer:
     """The Gaussians of ``layer`` whose centres lie inside the volume it was fitted in (``info["volume"]``): what
     stands in front of the backdrop, e.g. an obstacle in the flow."""
     lo, hi = (np.asarray(v, np.float32) for v in layer.info["volume"])
-    keep = ((layer.means >= lo) & (layer.means <= hi)).all(axis=1)
+    keep = in_box(layer.means, lo, hi)
     return StaticLayer(layer.means[keep], layer.scales[keep], layer.quats[keep], layer.opacities[keep],
                        layer.colors[keep], layer.background, layer.info)
 
@@ -133,13 +138,16 @@ def render_static(layer: StaticLayer, camera: Camera, return_depth: bool = False
 
 
 # ---- initialisation ------------------------------------------------------------------------------------------
-def _ray_seeds(index: int, cameras, plates, confidences, fill: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-               cfg: StaticConfig, generator: torch.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """One seed per ray of a grid through view ``index``'s image, at the depth where the views agree best (a
-    plane sweep: ``cfg.depths`` candidate depths from the volume's near side out to the shell, each scored by the
-    variance of the plates' colours where the other views see it), with the mean of those colours (``fill``
-    where the ray's own plate is unsure, confidence under 0.5). A ray no other view sees at any depth seeds at
-    the shell with its own plate's colour."""
+def _ray_seeds(index: int, cameras, plates, confidences, depth: DepthMap, fill: np.ndarray, lo: np.ndarray,
+               hi: np.ndarray, cfg: StaticConfig, generator: torch.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """One seed per ray of a jittered grid through view ``index``'s image with its plate's colour (``fill`` where
+    the plate is unsure, confidence under 0.5), at the ray's stereo depth where another view confirms it. A ray
+    without a confirmed depth seeds on the shell behind everything when the view shows a textured backdrop
+    (:func:`_sees_backdrop`: a part of the wall this view alone sees shows there, and the wall hides it from
+    other cameras), and nothing otherwise: over a plain backdrop nothing would hide a far seed from a camera
+    looking the other way, and such rays are a textureless object (whose hull the volume seeds fill) or a plate's
+    error (smoke that sat still). Rays showing the background colour (within ``cfg.plain`` of ``fill``) seed
+    nothing."""
     camera, plate, confidence = cameras[index], plates[index], confidences[index]
     center = 0.5 * (lo + hi)
     half = 0.5 * float(np.linalg.norm(hi - lo))
@@ -149,51 +157,27 @@ def _ray_seeds(index: int, cameras, plates, confidences, fill: np.ndarray, lo: n
     uv = np.stack(np.meshgrid(cols, rows), axis=-1).reshape(-1, 2)
     uv = uv + (torch.rand(uv.shape, generator=generator, dtype=torch.float64).numpy() - 0.5) * [w / cfg.rays,
                                                                                                h / cfg.rays]
-    dist = float(np.linalg.norm(camera.center - center))
-    depths = np.linspace(max(dist - half, 1e-3 * half), dist + cfg.shell * half, cfg.depths)
-    candidates = np.stack([camera.unproject(uv, d) for d in depths], axis=1)  # [R, D, 3]
-    total = np.zeros(candidates.shape[:2] + (plate.shape[-1],))
-    square = np.zeros(candidates.shape[:2])
-    count = np.zeros(candidates.shape[:2])
-    for cam, img, conf in zip(cameras, plates, confidences):
-        px, z = cam.project(candidates.reshape(-1, 3))
-        col, row = np.floor(px[:, 0]).astype(int), np.floor(px[:, 1]).astype(int)
-        ok = (z > 0) & (col >= 0) & (col < cam.width) & (row >= 0) & (row < cam.height)
-        ok[ok] &= conf[row[ok], col[ok]] >= 0.5
-        value = np.zeros((len(ok), img.shape[-1]))
-        value[ok] = img[row[ok], col[ok]]
-        ok, value = ok.reshape(count.shape), value.reshape(total.shape)
-        total += value
-        square += (value ** 2).sum(axis=-1)
-        count += ok
-    mean = total / np.maximum(count, 1)[..., None]
-    variance = square / np.maximum(count, 1) - (mean ** 2).sum(axis=-1)
-    variance[count < 2] = np.inf  # seen by this view alone: no agreement to measure
-    best = np.argmin(variance, axis=1)
-    rays = np.arange(len(uv))
-    alone = ~np.isfinite(variance[rays, best])
-    best[alone] = cfg.depths - 1  # what only this view sees goes to the shell, behind everything
-    points, colors = candidates[rays, best], mean[rays, best]
-    colors[alone] = plate[np.clip(uv[alone, 1].astype(int), 0, h - 1), np.clip(uv[alone, 0].astype(int), 0, w - 1)]
+    z = depth.at(uv, w, h)
     pix = np.clip(uv.astype(int), 0, [w - 1, h - 1])
+    confirmed = np.isfinite(z)
+    z = np.where(confirmed, z, float(np.linalg.norm(camera.center - center)) + cfg.shell * half)
+    points = camera.unproject(uv, z)
+    colors = np.array(plate[pix[:, 1], pix[:, 0]], np.float64).reshape(len(uv), -1)
     colors[confidence[pix[:, 1], pix[:, 0]] < 0.5] = fill
     # a plain colour has no depth (every depth agrees): what shows the background colour is left to it
-    content = np.abs(colors - fill).max(axis=1) > cfg.plain
+    content = (np.abs(colors - fill).max(axis=1) > cfg.plain) & (confirmed | _sees_backdrop(depth, lo, hi, cfg))
     return points[content], colors[content]
 
 
-def _mean_color(points: np.ndarray, cameras, plates, confidences, fill: np.ndarray) -> np.ndarray:
-    """[K, C] mean of the plates' confident colours where the views see ``points`` [K, 3] (``fill`` where none)."""
-    total = np.zeros((len(points), plates[0].shape[-1]))
-    count = np.zeros(len(points))
-    for cam, img, conf in zip(cameras, plates, confidences):
-        px, z = cam.project(points)
-        col, row = np.floor(px[:, 0]).astype(int), np.floor(px[:, 1]).astype(int)
-        ok = (z > 0) & (col >= 0) & (col < cam.width) & (row >= 0) & (row < cam.height)
-        ok[ok] &= conf[row[ok], col[ok]] >= 0.5
-        total[ok] += img[row[ok], col[ok]]
-        count += ok
-    return np.where(count[:, None] > 0, total / np.maximum(count, 1)[:, None], fill)
+def _sees_backdrop(depth: DepthMap, lo: np.ndarray, hi: np.ndarray, cfg: StaticConfig) -> bool:
+    """Whether the view shows a textured backdrop: at least ``cfg.backdrop`` of its pixels have a confirmed depth
+    whose point lies outside the volume."""
+    cam = depth.camera
+    rows, cols = np.nonzero(np.isfinite(depth.depth))
+    if len(rows) == 0:
+        return False
+    points = cam.unproject(np.stack([cols + 0.5, rows + 0.5], axis=1), depth.depth[rows, cols])
+    return int((~in_box(points, lo, hi)).sum()) >= cfg.backdrop * cam.width * cam.height
 
 
 def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig) -> StaticLayer:
@@ -201,34 +185,28 @@ def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig) -> St
     0.5 are not read (the median colour is taken over the sure pixels of every plate)."""
     lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
     generator = torch.Generator().manual_seed(cfg.seed)
-    size = box_size(hi - lo)
-    axes = [lo[k] + (np.arange(cfg.lattice) + 0.5) * (hi[k] - lo[k]) / cfg.lattice for k in range(3)]
-    lattice = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
     sure = np.concatenate([p[c >= 0.5] for p, c in zip(plates, confidences)])
     if len(sure) == 0:
         raise InputError(None, "backgrounds", "every plate pixel has confidence under 0.5: nothing to fit")
     median = np.median(sure, axis=0)
-    lattice_colors = _mean_color(lattice, cameras, plates, confidences, median)
-    plain = np.abs(lattice_colors - median).max(axis=1) <= cfg.plain
-    lattice, lattice_colors = lattice[~plain], lattice_colors[~plain]
-    points, colors = [lattice], [lattice_colors]
-    for index in range(len(cameras)):
-        p, c = _ray_seeds(index, cameras, plates, confidences, median, lo, hi, cfg, generator)
+    depths = depth_maps(cameras, plates, confidences, lo, hi, cfg.stereo)
+    nodes, node_colors = hull_points(depths, lo, hi, median, cfg.lattice, cfg.plain)
+    node_spacing = box_size(hi - lo) / cfg.lattice
+    points, colors = [nodes], [node_colors]
+    spacing = [np.full(len(nodes), node_spacing)]
+    for index, camera in enumerate(cameras):
+        p, c = _ray_seeds(index, cameras, plates, confidences, depths[index], median, lo, hi, cfg, generator)
         points.append(p)
         colors.append(c)
-    means = np.concatenate(points)
-    # each seed as wide as its spacing: the lattice's inside the volume, a ray seed's the pixel footprint there
-    spacing = np.full(len(means), size / cfg.lattice)
-    offset = len(lattice)
-    for camera, p in zip(cameras, points[1:]):
-        n = len(p)
-        _, z = camera.project(means[offset:offset + n])
-        spacing[offset:offset + n] = np.abs(z) * camera.width / cfg.rays / camera.K[0, 0]
-        offset += n
+        # each seed as wide as its ray's pixel footprint at its depth
+        _, z = camera.project(p)
+        spacing.append(np.abs(z) * camera.width / cfg.rays / camera.K[0, 0])
+    means, spacing = np.concatenate(points).reshape(-1, 3), np.concatenate(spacing)
     quats = np.tile([1.0, 0.0, 0.0, 0.0], (len(means), 1))
+    colors = np.concatenate(colors).reshape(len(means), plates[0].shape[-1])
     return StaticLayer(means.astype(np.float32), np.tile(0.5 * spacing[:, None], (1, 3)).astype(np.float32),
                        quats.astype(np.float32), np.full(len(means), cfg.initial_opacity, np.float32),
-                       np.concatenate(colors).astype(np.float32), median.astype(np.float32))
+                       colors.astype(np.float32), median.astype(np.float32))
 
 
 # ---- the optimisation ------------------------------------------------------------------------------------------

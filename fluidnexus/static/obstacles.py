@@ -1,12 +1,12 @@
 """Obstacles found in the footage: opaque static content inside the scene volume, from the static layer
 (issue 16, part 4; docs/static-layer.md).
 
-1. **Surfaces**: each view renders the static layer (``layer.render_static``) with its depth; pixels whose alpha
-   is at least ``opaque`` and whose colour differs from the layer's background colour by more than ``plain`` give
-   a surface point at the expected depth (depth / alpha).
+1. **Surfaces**: each view renders the static layer's Gaussians inside the volume (``layer.render_static``) with
+   their depth; pixels whose alpha is at least ``opaque`` and whose colour differs from the layer's background
+   colour by more than ``plain`` give a surface point at the expected depth (depth / alpha).
 2. **Carving** (space carving by depth): a voxel of a grid over the volume is free when some view sees past it:
-   its pixel shows the layer's background colour (alpha under ``opaque``), or the surface there lies more than
-   ``tolerance`` voxels behind the voxel. What no view sees past, and at least one view sees, is occupied.
+   nothing inside the volume is opaque at its pixel (or it shows the layer's background colour), or the surface
+   there lies more than ``tolerance`` voxels behind the voxel. What no view sees past, and at least one view sees, is occupied.
 3. **Bodies**: connected occupied parts holding at least ``min_points`` surface points are obstacles (the
    backdrop lies outside the volume and carves nothing). Each gets a signed-distance grid (negative inside, the
    format of ``engine.obstacle.GridObstacle``) and a least-squares sphere fitted to its surface points; a body
@@ -14,9 +14,10 @@
    engine body is that ball (the carved part also holds what no camera sees behind the ball, e.g. under it when
    every camera looks down).
 
-4. **Balls from silhouettes**: given the plates, a body whose silhouettes in the plates outline one ball (the rays
-   through the outlines graze it, ``silhouettes``) becomes that ball, which the layer's front-surface depths only
-   approximate; parts of it found separately are dropped (:func:`refine_balls`).
+4. **Balls from silhouettes**: a body whose silhouettes (the matte of the layer's Gaussians inside the volume in
+   each training view) outline one ball (the rays through the outlines graze it, ``silhouettes``) becomes that
+   ball, which the layer's surface depths only approximate; parts of it found separately are dropped
+   (:func:`refine_balls`).
 
 Declared obstacles (scene.json ``obstacles``) win: a found body that overlaps a declared one is dropped
 (:func:`merge_with_declared`).
@@ -28,7 +29,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..scene_scale import box_size
-from .layer import StaticLayer, render_static
+from .layer import StaticLayer, inside_volume, render_static
 from .silhouettes import fit_ball_to_rays, silhouette_rays
 
 
@@ -104,11 +105,13 @@ def fit_sphere(points: np.ndarray, rounds: int = 5) -> tuple[np.ndarray, float, 
 def surface_points(layer: StaticLayer, cameras, opaque: float = FinderConfig.opaque,
                    plain: float = FinderConfig.plain):
     """Per view: (alpha [H, W], expected depth [H, W] (inf where not opaque), world points [K, 3] of the opaque
-    pixels). A pixel is opaque when its alpha is at least ``opaque`` and its colour differs from the layer's
-    background colour by more than ``plain``."""
+    pixels) of the layer's Gaussians inside its volume, drawn alone (a backdrop behind would pull the expected
+    depth of a pixel that is not quite opaque). A pixel is opaque when its alpha is at least ``opaque`` and its
+    colour differs from the layer's background colour by more than ``plain``."""
     out = []
+    inner = inside_volume(layer)
     for camera in cameras:
-        image, alpha, depth = render_static(layer, camera, return_depth=True)
+        image, alpha, depth = render_static(inner, camera, return_depth=True)
         alpha, depth = alpha.double().numpy(), depth.double().numpy()
         # Gaussians that show the background colour are indistinguishable from none (e.g. over a white backdrop)
         shown = np.abs(image.double().numpy() - layer.background).max(axis=-1) > plain
@@ -164,20 +167,23 @@ def find_obstacles(layer: StaticLayer, cameras, lo, hi, cfg: FinderConfig = Find
     return sorted(found, key=lambda f: -f.volume)
 
 
-def refine_balls(found: list[FoundObstacle], layer: StaticLayer, cameras, plates, confidences,
+def refine_balls(found: list[FoundObstacle], layer: StaticLayer, cameras,
                  cfg: FinderConfig = FinderConfig()) -> list[FoundObstacle]:
-    """``found`` with every body that the plates show as a ball refitted to its silhouettes (``plates`` [V]
-    [H, W, C], ``confidences`` [V] [H, W], seen by ``cameras``): where the rays through the outlines around the
-    body's projected centre graze one ball within ``cfg.sphere_rms`` of its radius (rms), the body becomes that ball
-    (its ``rms`` the silhouettes' residual, so it is sphere-like); other bodies keep the layer's sphere and grid.
-    Bodies whose centre lies inside an earlier (larger) refitted ball are parts of it and are dropped."""
+    """``found`` with every body that the layer's silhouettes show as a ball refitted to them: in each of
+    ``cameras`` the object mask is the matte of the layer's Gaussians inside its volume (drawn alone, alpha at least
+    0.5); where the rays through the outlines around the body's projected centre graze one ball within
+    ``cfg.sphere_rms`` of its radius (rms), the body becomes that ball (its ``rms`` the silhouettes' residual, so it
+    is sphere-like); other bodies keep the layer's sphere and grid. Bodies whose centre lies inside an earlier
+    (larger) refitted ball are parts of it and are dropped."""
+    inner = inside_volume(layer)
+    mattes = [render_static(inner, cam)[1].numpy() >= 0.5 for cam in cameras]
     out = []
     for body in found:
         if any(b.sphere_like(cfg.sphere_rms) and np.linalg.norm(np.subtract(body.center, b.center)) < b.radius
                for b in out):
             continue
-        rays = [silhouette_rays(cam, plate, conf, layer.background, np.asarray(body.center), body.radius,
-                                cfg.plain) for cam, plate, conf in zip(cameras, plates, confidences)]
+        rays = [silhouette_rays(cam, matte, np.asarray(body.center), body.radius)
+                for cam, matte in zip(cameras, mattes)]
         origins = np.concatenate([r[0] for r in rays])
         if len(origins) >= cfg.min_points:
             center, radius, rms = fit_ball_to_rays(origins, np.concatenate([r[1] for r in rays]),

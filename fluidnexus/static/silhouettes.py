@@ -1,22 +1,21 @@
-"""A ball's centre and radius from its silhouettes in the clean plates (docs/static-layer.md, "Obstacles").
+"""A ball's centre and radius from its silhouettes (docs/static-layer.md, "Obstacles").
 
-The static layer places a ball's surface only where the ring of cameras sees it, and its depths are noisy; the
-plates show its outline exactly. Every boundary pixel of a silhouette is the image of a ray that grazes the ball, so
-the ball (c, r) satisfies, for every such ray through the camera centre o with unit direction d,
+The static layer's surface depths are noisy (a ball without texture has no stereo depth; its Gaussians fill
+its hull), but its silhouettes in the training views are exact: the layer reproduces those views. Every boundary
+pixel of a silhouette is the image of a ray that grazes the ball, so the ball (c, r) satisfies, for every such ray
+through the camera centre o with unit direction d,
 
     | (c - o) - ((c - o) . d) d | = r          (the distance of the centre from the ray)
 
 which holds under perspective projection exactly (a ball's outline is an ellipse in the image, not a circle). The
-rays of all views are solved together by robust non-linear least squares (soft-L1 residuals, so that a smear of
-static smoke beside the ball, kept in a plate, does not pull it), starting from the layer's sphere.
+rays of all views are solved together by robust non-linear least squares (soft-L1 residuals, so that static smoke
+kept beside the ball does not pull it), starting from the layer's sphere.
 
-A view's silhouette is the connected part of its plate's object pixels (colour further than ``plain`` from the
-layer's background colour, confidence at least 0.5) that holds the ball's projected centre; its outline runs
-between the silhouette's pixels and their neighbours outside it (not along the image border, where the silhouette
-goes on out of view), and points further than ``reach`` projected radii from the projected centre are left out
-(other objects touching the ball's silhouette). A backdrop that is not plain (textured, in colours other than the
-layer's background colour) joins the ball's silhouette and leaves nothing near it to fit: the body then keeps the
-layer's sphere.
+A view's silhouette is the connected part of its object mask (the caller's: the static layer's Gaussians inside
+the volume, drawn alone, alpha at least 0.5, which separates the ball from a textured backdrop behind it) that
+holds the ball's projected centre; its outline runs between the silhouette's pixels and their neighbours outside it
+(not along the image border, where the silhouette goes on out of view), and points further than ``reach``
+projected radii from the projected centre are left out (other objects touching the ball's silhouette).
 """
 from __future__ import annotations
 
@@ -25,11 +24,11 @@ import numpy as np
 from ..camera import Camera
 
 
-def silhouette_rays(camera: Camera, plate: np.ndarray, confidence: np.ndarray, background: np.ndarray,
-                    center: np.ndarray, radius: float, plain: float, reach: float = 1.6) -> tuple[np.ndarray, np.ndarray]:
+def silhouette_rays(camera: Camera, objects: np.ndarray, center: np.ndarray, radius: float,
+                    reach: float = 1.6) -> tuple[np.ndarray, np.ndarray]:
     """(origins [K, 3], unit directions [K, 3]) of the rays through the boundary pixels of the silhouette of the
-    ball (``center``, ``radius``: a first guess) in one view's ``plate`` [H, W, C]; empty arrays when the
-    projected centre lies outside the image or on no object pixel."""
+    ball (``center``, ``radius``: a first guess) in one view's object mask ``objects`` [H, W] bool; empty arrays
+    when the projected centre lies outside the image or on no object pixel."""
     from scipy import ndimage
 
     empty = (np.zeros((0, 3)), np.zeros((0, 3)))
@@ -37,7 +36,6 @@ def silhouette_rays(camera: Camera, plate: np.ndarray, confidence: np.ndarray, b
     col, row = int(np.floor(uv[0, 0])), int(np.floor(uv[0, 1]))
     if depth[0] <= 0 or not (0 <= col < camera.width and 0 <= row < camera.height):
         return empty
-    objects = (np.abs(plate - np.asarray(background, plate.dtype)).max(axis=-1) > plain) & (confidence >= 0.5)
     labels, _ = ndimage.label(objects)
     if labels[row, col] == 0:
         return empty

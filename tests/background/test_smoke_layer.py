@@ -83,6 +83,20 @@ def test_ill_conditioned_pixels_and_unsure_plate():
     assert MIN_CONTRAST == 0.1  # docs/background.md states it
 
 
+def test_smoke_that_is_never_opaque_needs_its_colour():
+    """White smoke at most 0.6 opaque over a textured backdrop: taken as opaque, its densest part gives a colour
+    too dark and a layer with the backdrop's texture in it; given the colour, the layer is the smoke."""
+    back = backdrop(7, "dark", HEIGHT, WIDTH)
+    alpha, white = 0.6 * opacity(), np.ones(3, np.float32)
+    video, sure = composite(back, alpha, white), np.ones((HEIGHT, WIDTH), np.float32)
+    truth = alpha[..., None] * white
+    guessed, given = smoke_layer(video, back, sure), smoke_layer(video, back, sure, white)
+    assert guessed.color.max() < 0.95  # a mix of white and the backdrop behind the densest smoke: 0.90-0.92
+    np.testing.assert_array_equal(given.color, white)
+    assert np.abs(given.alpha - alpha).mean() < ALPHA_MAE  # measured 0.0106: the noise floor cuts thin smoke
+    assert np.abs(given.layer - truth).mean() < 0.3 * np.abs(guessed.layer - truth).mean()  # 0.011 against 0.047
+
+
 def test_no_smoke_is_refused():
     back = backdrop(7, "dark", HEIGHT, WIDTH)
     with pytest.raises(NoSmoke):
@@ -130,6 +144,22 @@ def test_synth_writes_smoke_layers_over_black(tmp_path):
         assert "smoke_layer" not in raw.view(name).provenance
     ok("refine", plated.root)  # keeps the record with the refined video
     assert load_scene(plated.root).view("train00").provenance["smoke_layer"] == record
+    assert record["smoke_color_from"] == "estimated"
+
+
+def test_synth_takes_the_smoke_colour_when_known(tmp_path):
+    """``--smoke-color`` replaces the estimate (recorded as such); a bad value, or a colour for an input view
+    without a plate, stops synth in one line before anything is written."""
+    clean, raw, plated = plated_scenes(tmp_path)
+    ok("synth", plated, "--smoke-color", ",".join(str(v) for v in TINT))
+    record = load_scene(plated).view("train00").provenance["smoke_layer"]
+    assert record["smoke_color_from"] == "--smoke-color"
+    np.testing.assert_allclose(record["smoke_color"], TINT, atol=1e-4)
+    for bad in ("white", "1,1", "1.2,1,1"):
+        assert_clean_failure(invoke("synth", clean, "--smoke-color", bad), "--smoke-color")
+    before = (raw / "scene.json").read_text()
+    assert_clean_failure(invoke("synth", raw, "--smoke-color", "1,1,1"), "--smoke-color")
+    assert (raw / "scene.json").read_text() == before and not list((raw / "videos").glob("*_synth.mp4"))
 
 
 # ---- calibrate --video --plate --------------------------------------------------------------------------

@@ -79,11 +79,12 @@ def _project(u: np.ndarray, dx: float, iters: int = 30) -> np.ndarray:
 
 
 def simulate(frames: int, effects: PlumeEffects = PlumeEffects(), grid: Grid = Grid(),
-             stop: int | None = None) -> np.ndarray:
+             stop: int | None = None, start: int = 0) -> np.ndarray:
     """Density [frames, nx, ny, nz] at each frame (frame 0: before any inflow).
 
-    ``stop``: a burst: the source is on for frames [0, stop) only (the step into frame t emits while t < stop, the
-    convention of scene.Source.emits_at); None: on to the end."""
+    ``stop``: a burst: the source is on for frames [start, stop) only (the step into frame t emits while
+    start <= t < stop, the convention of scene.Source.emits_at); None: on to the end. ``start``: a source that
+    switches on late."""
     dx, dt = grid.dx, 1.0 / (grid.fps * grid.substeps)
     c = grid.centres()
     r = c - np.asarray(grid.source)
@@ -93,7 +94,7 @@ def simulate(frames: int, effects: PlumeEffects = PlumeEffects(), grid: Grid = G
     wind = np.asarray(effects.wind, float)
     out = [d.copy()]
     for t in range(1, frames):
-        on = stop is None or t < stop
+        on = t >= start and (stop is None or t < stop)
         for _ in range(grid.substeps):
             if on:
                 d[disk] += dt * grid.emission  # constant smoke flux, as a particle source

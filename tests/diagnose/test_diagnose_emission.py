@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fluidnexus.diagnose.emission import Emission, emission_window, stop_from_footage
+from fluidnexus.diagnose.emission import Emission, emission_window, start_from_footage, stop_from_footage
 from fluidnexus.diagnose.plume import PlumeParams, PlumeSetup, PlumeSimulator
 from fluidnexus.diagnose.run import load_observed
 from fluidnexus.scene import load_scene
@@ -27,8 +27,20 @@ def test_stop_from_footage_on_known_signals():
     assert stop_from_footage(np.zeros(30)) is None  # no smoke at the source at all: nothing to say
 
 
-def _emission(template, folder, stop, window=None) -> Emission:
-    scene = write_scene(template, folder, simulate(FRAMES, stop=stop), window=window)
+def test_start_from_footage_on_known_signals():
+    fill = np.minimum(np.arange(30) / 11, 1.0)  # on from the first frame: the region takes 11 frames to fill
+    assert start_from_footage(fill) == 0
+    assert start_from_footage(0.8 + 0.2 * np.cos(np.arange(30))) == 0
+    late = np.concatenate([np.zeros(9), np.minimum(np.arange(1, 22) / 4, 1.0)])  # new smoke from frame 9
+    assert start_from_footage(late) == 9
+    drift = late + np.concatenate([np.linspace(0, 0.2, 9), np.full(21, 0.2)])  # smoke drifting in before it
+    assert start_from_footage(drift) == 9
+    assert start_from_footage(np.concatenate([[0.0, 0.0], late[9:]])) == 0  # two empty frames are no late start
+    assert start_from_footage(np.zeros(30)) == 0  # no smoke at the source at all: nothing to say
+
+
+def _emission(template, folder, stop, window=None, start=0) -> Emission:
+    scene = write_scene(template, folder, simulate(FRAMES, stop=stop, start=start), window=window)
     source = load_scene(scene).source
     return emission_window(source, load_observed(scene, 0, FRAMES, 40), source.center, source.radius)
 
@@ -40,6 +52,15 @@ def test_footage_finds_when_a_burst_stops(template, tmp_path, stop):
     found = _emission(template, tmp_path / "burst", stop)
     assert found.source == "footage" and found.start == 0
     assert found.stop is not None and abs(found.stop - stop) <= 2, found
+
+
+@pytest.mark.parametrize("start, stop", [(10, None), (20, None), (8, 30)])
+def test_footage_finds_when_a_source_starts(template, tmp_path, start, stop):
+    """A source switched on late (and a burst of it) in a scene that does not declare it: the footage gives the
+    start (and the stop)."""
+    found = _emission(template, tmp_path / "late", stop, start=start)
+    assert found.source == "footage" and abs(found.start - start) <= 1, found
+    assert (found.stop is None) if stop is None else abs(found.stop - stop) <= 2, found
 
 
 def test_a_continuous_plume_emits_to_the_end(template, tmp_path):
@@ -64,3 +85,13 @@ def test_the_simulated_plume_emits_only_inside_the_window(ti_engine):
         counts = np.array([len(p) for p in sim.rollout(params).positions])
         assert counts[3] > 0 and np.all(np.diff(counts[:4]) >= 0), (params.structure, counts)
         assert np.all(counts[4:] == counts[3]), (params.structure, counts)
+
+
+def test_report_says_when_the_source_starts_and_stops():
+    from fluidnexus.diagnose.report import _emission_text
+
+    late = _emission_text(Emission(8, 30, "footage"), 0, 47)
+    assert "first appears at the source at frame 8" in late and "after frame 29" in late
+    assert "from frame 8 to frame 29 only" in late
+    assert "first appears" not in _emission_text(Emission(0, None, "footage"), 0, 47)
+    assert "from frame 10 on" in _emission_text(Emission(10, None, "footage"), 0, 47)

@@ -16,7 +16,7 @@ from fluidnexus.video import read_video
 from .backdrop_scene import HELD_OUT, INPUTS, write_scenes
 from .conftest import TINY, ok
 
-SETTINGS = [*TINY, "--static-iters", "100"]
+SETTINGS = TINY  # the static layer at its default 400 iterations
 
 
 @pytest.fixture(scope="module")
@@ -66,11 +66,9 @@ def test_a_held_out_camera_gets_the_static_layer_behind_the_smoke(runs):
     assert scores["novel_view"]["per_view"][HELD_OUT]["psnr"] > on_black + 8.0
 
 
-@pytest.mark.xfail(strict=False, reason="measured 2026-11-24: novel view 21.5 dB over the backdrop against 32.0 dB on "
-                   "black. The error is the static layer's render of the held-out camera (21.5 dB against the true "
-                   "plate; the training views 34-39 dB): four views on an arc do not pin the depth of the plane's "
-                   "smooth texture (docs/static-layer.md, Limits)")
 def test_novel_view_over_the_backdrop_within_2_db_of_black(runs):
+    """The held-out camera sees the smoke over the static layer's render of the backdrop (measured 30.85 dB against
+    32.00 dB on black; the static layer alone against the true plate 32.2 dB)."""
     black, back = runs["black"][1], runs["backdrop"][1]
     assert back["novel_view"]["psnr"] >= black["novel_view"]["psnr"] - 2.0
 

@@ -1,0 +1,59 @@
+"""Seeds for what the stereo cannot place: the part of the volume that no view sees through (the static layer's
+volume seeds, docs/static-layer.md).
+
+A surface without texture (PINF Sphere's uniformly coloured ball) matches itself at every depth inside it, so
+plane-sweep stereo confirms no depth there; its seeds come from carving instead (the visual hull, Laurentini
+1994, with the stereo's depths). A node of a lattice over the volume is kept when
+
+1. at least two views see it, each on a plate pixel of confidence at least ``min_confidence``;
+2. every view that sees it shows something there: a pixel further than ``plain`` from the background colour
+   (the silhouettes of objects over a plain backdrop);
+3. no view sees past it to a backdrop: where a view's stereo depth is confirmed at the node's pixel and its point
+   lies outside the volume, that surface lies no more than ``tolerance`` lattice spacings behind the node (in
+   front of a textured wall, whose depth the stereo confirms, every node is carved away; without that test a
+   textured backdrop, which is "something" in every pixel, would fill the whole volume). Depths confirmed inside
+   the volume do not carve: on a surface with little texture the sweep's depth can lie a pixel of disparity deep
+   (several lattice spacings), and it would carve the object's own hull.
+
+Each node kept takes the mean colour of the views that see it.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..scene_scale import box_size
+from .stereo import DepthMap, sample
+
+
+def hull_points(views: list[DepthMap], lo, hi, background: np.ndarray, lattice: int = 24, plain: float = 0.03,
+                tolerance: float = 1.0, min_confidence: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """(points [K, 3], colours [K, C]): the lattice nodes (``lattice`` along the volume's size, cube root of its
+    box volume) that the views do not see through (module docstring); ``views`` at the stereo's working size."""
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    spacing = box_size(hi - lo) / lattice
+    axes = [np.arange(lo[k] + 0.5 * spacing, hi[k], spacing) for k in range(3)]
+    nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    seen = np.zeros(len(nodes), int)
+    kept = np.ones(len(nodes), bool)
+    total = np.zeros((len(nodes), views[0].plate.shape[-1]))
+    for view in views:
+        cam = view.camera
+        uv, z = cam.project(nodes)
+        colour, inside = sample(view.plate, uv)
+        conf, _ = sample(view.confidence[..., None], uv)
+        sees = inside & (z > 0) & (conf[:, 0] >= min_confidence)
+        shows = np.abs(colour - background).max(axis=-1) > plain
+        px = np.clip(np.floor(np.nan_to_num(uv)).astype(int), 0, [cam.width - 1, cam.height - 1])
+        surface = view.depth[px[:, 1], px[:, 0]]
+        past = np.isfinite(surface) & (surface > z + tolerance * spacing)
+        past[past] &= ~in_box(cam.unproject(uv[past], surface[past]), lo, hi)
+        kept &= ~sees | (shows & ~past)
+        seen += sees
+        total += np.where(sees[:, None], colour, 0.0)
+    kept &= seen >= 2
+    return nodes[kept], (total / np.maximum(seen, 1)[:, None])[kept]
+
+
+def in_box(points: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """[N] bool: ``points`` [N, 3] inside the box ``lo``..``hi``."""
+    return np.all((points >= lo) & (points <= hi), axis=1)
