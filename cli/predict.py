@@ -76,10 +76,14 @@ def future_context(run, first, model_file, calibrate: bool, window: int):
     from fluidnexus.predict.session import start_frame
 
     ctx = RunContext.of(run)
-    model = load_model_file(model_file, ambient_air=True)
+    loaded = load_model_file(model_file, ambient_air=True)
     notes = {"model_file": None if model_file is None else str(Path(model_file).resolve()), "calibration": None}
-    if model is not None:
-        ctx = dataclasses.replace(ctx, model=model)
+    if loaded is not None:
+        ctx = dataclasses.replace(ctx, model=loaded.model)
+        if loaded.window is not None and ctx.source.window is None:  # a window the scene declares wins
+            ctx = dataclasses.replace(ctx, source=dataclasses.replace(ctx.source, window=loaded.window))
+            log.info("the source emits in frames [%d, %s) only (the model file's window)", loaded.window[0],
+                     "end" if loaded.window[1] is None else loaded.window[1])
     if calibrate:
         result = backtest(run, ctx, start_frame(run, first), window)
         if result is not None:

@@ -81,8 +81,8 @@ def recon(scene_dir: Path, out: Path, frames_text, resolution, channels, config_
     values["resolution"] = resolve_resolution(resolution, scene)
     values["channels"] = 1 if channels == "gray" else 3
     cfg = config_for_scene(scene, values, config_file)  # lengths follow the scene's size unless given
-    model = load_model_file(model_file, ambient_air=False)
+    loaded = load_model_file(model_file, ambient_air=False)
     start_engine(arch)
-    summary = reconstruct(scene, out, default_setup(scene, cfg, model), resume=resume, max_memory=limit)
+    summary = reconstruct(scene, out, default_setup(scene, cfg, None if loaded is None else loaded.model), resume=resume, max_memory=limit)
     log.info("reconstructed frames %d:%d into %s (%.1f s per frame)", *summary["frames"], out,
              summary["seconds_per_frame"])

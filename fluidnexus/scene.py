@@ -100,7 +100,7 @@ class Source:
             raise InputError(path, f"{fld}.speed", f"must be >= 0 m/s, got {speed}")
         return cls(_triple(data["center"], path, f"{fld}.center"),
                    require_positive(data["radius"], path, f"{fld}.radius"), direction, speed,
-                   _parse_window(data.get("window"), path, f"{fld}.window"))
+                   parse_window(data.get("window"), path, f"{fld}.window"))
 
 
 @dataclass(frozen=True)
@@ -232,7 +232,7 @@ def _parse_volume(data, path) -> Volume | None:
     return Volume(lo, hi)
 
 
-def _parse_window(value, path, fld: str) -> tuple[int, int | None] | None:
+def parse_window(value, path, fld: str) -> tuple[int, int | None] | None:
     """An emission window [A, B] of frame indices (B null: to the end), or None."""
     if value is None:
         return None

@@ -33,14 +33,16 @@ def structure_params(params) -> dict:
     return {"alpha": params.alpha, "drag_k": params.k, "layers_per_second": params.layers}
 
 
-def model_dict(fit, setup) -> dict:
+def model_dict(fit, setup, emission) -> dict:
     """model.json: the engine model (``ModelConfig.to_dict``, its structure included), the appearance and source
-    extensions."""
+    extensions, and the source's emission window (``emission``: emission.Emission; predict and interact emit only
+    inside it when the run's scene declares none)."""
     p = fit.params
     spacing = setup.spacing * (AIR_SPACING if p.structure == "ambient_air" else 1.0)
     return {"format": MODEL_FORMAT, "model": p.model().to_dict(), "solver": setup.solver_for(p.structure).to_dict(),
             "source": {"center": list(setup.source_center), "radius": setup.source_radius,
-                       "spacing": spacing, "swirl_omega": float(p.ext("swirl", "omega"))},
+                       "spacing": spacing, "swirl_omega": float(p.ext("swirl", "omega")),
+                       "window": [emission.start, emission.stop], "window_from": emission.source},
             "appearance": {"gain": p.gain, "dissipation_rate": float(p.ext("dissipation", "rate"))},
             "extensions": {k: _jsonable(v) for k, v in p.extensions.items()}}
 
@@ -71,7 +73,7 @@ def write_outputs(out_dir: Path, observed, bases: dict, structure: str, fits: di
                             "gain": {"metric": "validation_image_error",
                                      "before": float(bases["paper_gas"].errors[va].mean()), "after": b_err}}}
     write_json(out_dir / "report.json", report)
-    write_json(out_dir / "model.json", model_dict(chosen, fitter.sim.setup))
+    write_json(out_dir / "model.json", model_dict(chosen, fitter.sim.setup, emission))
     plots = _plots(out_dir, observed, bases, chosen, finding, train, validate)
     text = _markdown(report, observed, bases, structure, fits, judged, finding, va, plots, fitter, spread, emission,
                      seconds)

@@ -48,13 +48,14 @@ def diagnose_density(template, tmp_path, density: np.ndarray, train: str = TRAIN
     report = json.loads((out / "report.json").read_text())
     assert set(report) == {"finding", "candidates", "windows", "views", "emission", "structure"}
     assert report["structure"]["name"] in ("paper_gas", "ambient_air")
-    model = json.loads((out / "model.json").read_text())["model"]
-    assert model["structure"]["name"] == report["structure"]["name"]
+    model_file = json.loads((out / "model.json").read_text())
+    assert model_file["model"]["structure"]["name"] == report["structure"]["name"]
     assert report["windows"] == {"train": [int(x) for x in train.split(":")],
                                  "validate": [int(x) for x in validate.split(":")]}
     # a declared window is used as declared; every plume here without one is continuous: no false stop
     assert report["emission"] == ({"window": list(window), "from": "scene"} if window else
                                   {"window": [0, None], "from": "footage"}), report["emission"]
+    assert [model_file["source"][k] for k in ("window", "window_from")] == list(report["emission"].values())
     assert len(report["views"]) == 5
     assert {c["effect"] for c in report["candidates"]} == {"wind", "buoyancy_decay", "vorticity", "viscosity",
                                                            "dissipation", "swirl"}

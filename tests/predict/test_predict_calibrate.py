@@ -56,15 +56,36 @@ def test_predict_uses_a_model_file(start_run, tmp_path):
     assert pred.info["calibration"] is None  # one reconstructed frame: nothing to backtest on
 
 
+def test_predict_emits_only_inside_the_model_files_window(start_run, tmp_path):
+    """A burst diagnosed as stopped (model.json's ``source.window``, e.g. found in the footage): the future emits
+    no new smoke after the stop, as it does with the window open to the end; the window is recorded in the run."""
+    model = ModelConfig((Buoyancy(alpha=-0.01), Drag(k=20.0)))
+    counts = {}
+    for name, window in (("stopped", [0, 1]), ("open", [0, None])):
+        path = tmp_path / f"{name}.json"
+        path.write_text(json.dumps({"format": "fluidnexus-model/1", "model": model.to_dict(),
+                                    "source": {"window": window, "window_from": "footage"}}))
+        out = tmp_path / name
+        ok("predict", start_run, "--frames", 2, "--out", out, "--no-refit", "--model", path, "--arch", "cpu")
+        pred = open_run(out)
+        assert pred.info["source"]["window"] == window
+        counts[name] = [pred.state(t).num_physical for t in pred.frames]
+    first = open_run(start_run).state(0).num_physical
+    assert set(counts["stopped"]) == {first} and counts["open"][-1] > counts["open"][0] > first, counts
+
+
 def test_predict_rejects_bad_model_options(start_run, tmp_path):
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps({"model": {"terms": [{"kind": "no-such-term"}]}}))
     result = invoke("predict", start_run, "--frames", 2, "--out", tmp_path / "x", "--no-refit", "--model", bad)
     assert result.exit_code == 2 and "bad.json" in result.output and "model" in result.output
+    bad.write_text(json.dumps({"model": ModelConfig((Buoyancy(alpha=-0.01),)).to_dict(), "source": {"window": [5, 2]}}))
+    result = invoke("predict", start_run, "--frames", 2, "--out", tmp_path / "w", "--no-refit", "--model", bad)
+    assert result.exit_code == 2 and "bad.json" in result.output and "source.window" in result.output
     result = invoke("predict", start_run, "--frames", 2, "--out", tmp_path / "y", "--no-refit",
                     "--calibrate-window", 0)
     assert result.exit_code == 2 and "--calibrate-window" in result.output
-    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
+    assert not any((tmp_path / name).exists() for name in ("x", "y", "w"))
 
 
 def test_new_smoke_looks_like_the_recent_inflow(start_run):
