@@ -19,7 +19,7 @@ from cli.main import main
 def run() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--arch", default="cpu")
-    ap.add_argument("--evals", type=int, default=14)
+    ap.add_argument("--evals", type=int, default=20)
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     root = Path(args.out or tempfile.mkdtemp(prefix="bench_diagnose_"))

@@ -27,7 +27,7 @@ def _window(text: str, name: str) -> tuple[int, int]:
 @click.option("--spacing", default=None, type=click.FloatRange(0, min_open=True),
               help="Particle spacing of the simulated plume [m]; default 0.02 m x the scene's length scale "
                    "(docs/scale.md).")
-@click.option("--evals", default=14, show_default=True, type=click.IntRange(3, 200),
+@click.option("--evals", default=20, show_default=True, type=click.IntRange(3, 200),
               help="Rollouts per fit (Nelder-Mead evaluations).")
 @arch_option
 def diagnose(source, out, train_frames, validate_frames, height, spacing, evals, arch):

@@ -68,7 +68,7 @@ def visual_hull(observed: Observed, lo, hi, spacing: float, level: float = 0.15)
 
 
 def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, int], height: int = 48,
-             spacing: float | None = None, maxfev: int = 14, candidates=tuple(EXTENSIONS)) -> dict:
+             spacing: float | None = None, maxfev: int = 20, candidates=tuple(EXTENSIONS)) -> dict:
     """Run the whole procedure and write report.json, report.md, plots and model.json into ``out_dir``.
 
     Args:
