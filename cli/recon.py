@@ -81,8 +81,9 @@ def recon(scene_dir: Path, out: Path, frames_text, resolution, channels, config_
     values["resolution"] = resolve_resolution(resolution, scene)
     values["channels"] = 1 if channels == "gray" else 3
     cfg = config_for_scene(scene, values, config_file)  # lengths follow the scene's size unless given
-    loaded = load_model_file(model_file, ambient_air=False)
+    loaded = load_model_file(model_file, ambient_air=False)  # its physics only: recon emits as the scene says
     start_engine(arch)
-    summary = reconstruct(scene, out, default_setup(scene, cfg, None if loaded is None else loaded.model), resume=resume, max_memory=limit)
+    setup = default_setup(scene, cfg, None if loaded is None else loaded.model)
+    summary = reconstruct(scene, out, setup, resume=resume, max_memory=limit)
     log.info("reconstructed frames %d:%d into %s (%.1f s per frame)", *summary["frames"], out,
              summary["seconds_per_frame"])

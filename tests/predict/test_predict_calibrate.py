@@ -79,7 +79,8 @@ def test_predict_rejects_bad_model_options(start_run, tmp_path):
     bad.write_text(json.dumps({"model": {"terms": [{"kind": "no-such-term"}]}}))
     result = invoke("predict", start_run, "--frames", 2, "--out", tmp_path / "x", "--no-refit", "--model", bad)
     assert result.exit_code == 2 and "bad.json" in result.output and "model" in result.output
-    bad.write_text(json.dumps({"model": ModelConfig((Buoyancy(alpha=-0.01),)).to_dict(), "source": {"window": [5, 2]}}))
+    model = ModelConfig((Buoyancy(alpha=-0.01),)).to_dict()
+    bad.write_text(json.dumps({"model": model, "source": {"window": [5, 2]}}))
     result = invoke("predict", start_run, "--frames", 2, "--out", tmp_path / "w", "--no-refit", "--model", bad)
     assert result.exit_code == 2 and "bad.json" in result.output and "source.window" in result.output
     result = invoke("predict", start_run, "--frames", 2, "--out", tmp_path / "y", "--no-refit",
