@@ -109,6 +109,28 @@ def smoke_layer(video: np.ndarray, plate: np.ndarray, confidence: np.ndarray,
     return SmokeLayer(layer, alpha, color, float((contrast2 < MIN_CONTRAST ** 2).mean()), floor)
 
 
+def smoke_color(videos: list[np.ndarray], plates: list[np.ndarray], confidences: list[np.ndarray]) -> np.ndarray:
+    """[C] the colour of the densest smoke over several views of one smoke (module docstring; the views' smoke
+    samples pooled, so every view gets the one colour): arguments as :func:`smoke_layer`'s, a list each.
+
+    Raises:
+        NoSmoke: no view differs from its plate by more than its noise floor.
+    """
+    images, backs = [], []
+    for video, plate, confidence in zip(videos, plates, confidences):
+        floor = max(MIN_CHANGE, NOISE_FACTOR * noise_level(video))
+        try:
+            image, back = _smoke_samples(video, np.asarray(plate, np.float32), confidence >= CONFIDENT, floor,
+                                         max(1, CHUNK_VALUES // plate.size))
+        except NoSmoke:
+            continue
+        images.append(image)
+        backs.append(back)
+    if not images:
+        raise NoSmoke("no view differs from its plate by more than its noise floor in any frame")
+    return _dense_color(np.concatenate(images), np.concatenate(backs))
+
+
 def _smoke_samples(video: np.ndarray, plate: np.ndarray, confident: np.ndarray, floor: float,
                    chunk: int) -> tuple[np.ndarray, np.ndarray]:
     """Samples (I, B), each [N, C], that differ from the plate by at least ``floor`` in some channel: up to

@@ -136,8 +136,9 @@ class Layout:
         return {"predict": self.predict, "diagnose": self.diagnose}.get(step)
 
 
-def step_args(step: str, source: dict, options: list[str], layout: Layout, arch: str) -> list[str]:
-    """The full argument list of ``step``'s command for one scene (resume decided from the files already there)."""
+def step_args(step: str, source: dict, options: list[str], layout: Layout, arch: str, cpus: int = 1) -> list[str]:
+    """The full argument list of ``step``'s command for one scene (resume decided from the files already there);
+    ``cpus``: the task's CPUs, diagnose's ``--jobs`` unless the manifest sets it."""
     if step == PREPARE:
         return source_args(source) + options + ["--out", str(layout.scene), "--overwrite"]
     if step == "background":  # a re-run after a kill replaces what the killed step left
@@ -152,7 +153,8 @@ def step_args(step: str, source: dict, options: list[str], layout: Layout, arch:
     if step == "predict":
         return [str(layout.run), "--out", str(layout.predict), "--arch", arch] + _device(options, arch)
     if step == "diagnose":
-        return [str(layout.scene), "--out", str(layout.diagnose), "--arch", arch] + options
+        jobs = [] if "--jobs" in options else ["--jobs", str(max(1, cpus))]
+        return [str(layout.scene), "--out", str(layout.diagnose), "--arch", arch] + options + jobs
     raise ValueError(step)
 
 

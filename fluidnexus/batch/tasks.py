@@ -84,7 +84,7 @@ def run_step(job: StepJob) -> dict:
         _clear_unfinished(job, layout)
         copy = job.step == PREPARE and job.source["kind"] == "scene"
         args = ["copy", job.source["scene"]] if copy else step_args(job.step, job.source, job.options, layout,
-                                                                      job.arch)
+                                                                      job.arch, job.threads)
         log.info("batch: %s %s on %s: %s", job.scene, job.step, socket.gethostname(), " ".join(args))
         try:
             if copy:

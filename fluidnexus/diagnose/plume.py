@@ -19,6 +19,7 @@ from fluidnexus.engine import (AirDomain, AmbientAir, Buoyancy, Drag, ModelConfi
                                step_particles)
 
 from .observe import splat_points
+from .scenery import Obstacles
 
 #: The candidate extensions: name -> its parameters (defaults = the term switched off). See docs/diagnose.md.
 EXTENSIONS = {
@@ -101,6 +102,7 @@ class PlumeSetup:
         iterations: PBF solver iterations per step.
         emitting: [frames] bool, whether the source emits in the step into each frame (the emission window,
             emission.py); None: in every step.
+        obstacles: where the bodies the plume flows around come from (scenery.Obstacles), or None.
     """
 
     source_center: tuple
@@ -114,6 +116,7 @@ class PlumeSetup:
     air_seed: np.ndarray
     iterations: int = 4
     emitting: np.ndarray | None = None
+    obstacles: Obstacles | None = None
 
     def emits(self, frame: int) -> bool:
         """Whether the source emits in the step into rollout frame ``frame``."""
@@ -130,10 +133,11 @@ class PlumeSetup:
     def solver(self) -> SolverConfig:
         return self.solver_for("paper_gas")
 
-    def domain(self, air: AmbientAir) -> AirDomain:
-        """The air around the source (ambient_air), inside the box [lo, hi]."""
+    def domain(self, air: AmbientAir, obstacle=None) -> AirDomain:
+        """The air around the source (ambient_air), inside the box [lo, hi], none inside ``obstacle``."""
         s = self.solver_for("ambient_air")
-        return AirDomain(air, s.h, s.rest_density, s.dt, self.source_center, self.source_radius, self.lo, self.hi)
+        return AirDomain(air, s.h, s.rest_density, s.dt, self.source_center, self.source_radius, self.lo, self.hi,
+                         obstacle)
 
     @property
     def source(self) -> SourceDisk:
@@ -155,16 +159,21 @@ class Rollout:
 class PlumeSimulator:
     """Rolls the plume forward; keeps one engine simulator per set of active force terms."""
 
-    def __init__(self, setup: PlumeSetup):
+    def __init__(self, setup: PlumeSetup, obstacle=None):
+        """``obstacle``: the engine body of ``setup.obstacles`` when this process has built it already."""
         self.setup = setup
         self._sims: dict = {}
         self._particles = PhysicalParticles(setup.capacity)
+        if obstacle is None and setup.obstacles is not None:
+            obstacle = setup.obstacles.body()
+        self.obstacle = obstacle
 
     def _simulator(self, model: ModelConfig, capacity: int) -> PBFSimulator:
         kinds = (model.structure,) + tuple(t.kind for t in model.terms)
         sim = self._sims.get(kinds)
         if sim is None:
             sim = self._sims[kinds] = PBFSimulator(capacity, self.setup.solver_for(model.structure), model)
+            sim.set_obstacle(self.obstacle)
         else:
             sim.load_theta(model.to_vector())
         return sim
@@ -205,7 +214,7 @@ class PlumeSimulator:
     def _rollout_air(self, params: PlumeParams) -> Rollout:
         """The gas in ambient air: the seed as smoke in air at rest, the inlet (with the swirl) feeding it."""
         s, model = self.setup, params.model()
-        domain = s.domain(model.air)
+        domain = s.domain(model.air, self.obstacle)
         sim = self._simulator(model, domain.capacity(len(s.air_seed)))
         state = domain.initial(s.air_seed)
         omega = float(params.ext("swirl", "omega"))

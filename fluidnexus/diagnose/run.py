@@ -12,13 +12,15 @@ import numpy as np
 from fluidnexus.errors import InputError
 from fluidnexus.scene import load_ground_truth, load_scene
 from fluidnexus.scene_scale import scene_factor
-from fluidnexus.video import read_video
 
 from .emission import emission_window
+from .footage import smoke_images, usable
 from .observe import Observed, observables
 from .plume import AIR_SPACING, EXTENSIONS, STRUCTURES, PlumeSetup, PlumeSimulator
 from .report import write_outputs
-from .search import SPREAD_TOLERANCE, Fitter, fit_base, fit_candidate, judge, search_spread
+from .scenery import scene_obstacles
+from .parallel import FitPool
+from .search import SPREAD_TOLERANCE, Fitter, fit_candidate, fit_structure, judge, search_spread
 
 log = logging.getLogger("fluidnexus")
 
@@ -27,7 +29,8 @@ DEFAULT_SOURCE = ((0.34, 0.0, -0.225), 0.09)  # ScalarFlow inflow (docs/simulato
 
 def load_observed(scene_dir: Path, first: int, last: int, height: int) -> Observed:
     """Every real view of the scene (input views, novel views that have footage, ground truth whose camera
-    stands still) as gray images of ``height`` rows, frames [first, last)."""
+    stands still) as images of the smoke (footage.py: gray frames, or the smoke's opacity over the view's plate)
+    of ``height`` rows, frames [first, last)."""
     scene = load_scene(scene_dir)
     views = [(v.name, v.camera, scene.video_path(v)) for v in scene.views if v.video is not None]
     for g in load_ground_truth(scene_dir):
@@ -35,17 +38,15 @@ def load_observed(scene_dir: Path, first: int, last: int, height: int) -> Observ
             log.info("diagnose: ground-truth view %s left out: its camera moves (one pose per frame)", g.name)
             continue
         views.append((g.name, g.camera, scene.root / g.video))
+    views = [v for v in views if usable(scene, v[0])]
     if not views:
         raise InputError(scene_dir, "views", "diagnose needs at least one view with footage")
     if not 0 <= first < last <= scene.frame_count:
         raise InputError(scene_dir, "frames", f"windows {first}:{last} do not fit {scene.frame_count} frames")
-    names, cams, imgs = [], [], []
-    for name, cam, path in views:
-        w = max(8, round(cam.width * height / cam.height))
-        small = cam.resized(w, height)
-        imgs.append(read_video(path, frames=slice(first, last), size=(w, height), gray=True)[..., 0])
-        names.append(name)
-        cams.append(small)
+    cams = [cam.resized(max(8, round(cam.width * height / cam.height)), height) for _, cam, _ in views]
+    names = [name for name, _, _ in views]
+    imgs = smoke_images(scene, [(name, path, cam.width, cam.height) for (name, _, path), cam in zip(views, cams)],
+                        slice(first, last))
     return Observed(tuple(names), tuple(cams), np.asarray(imgs, np.float64), first, scene.fps)
 
 
@@ -68,7 +69,8 @@ def visual_hull(observed: Observed, lo, hi, spacing: float, level: float = 0.15)
 
 
 def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, int], height: int = 48,
-             spacing: float | None = None, maxfev: int = 20, candidates=tuple(EXTENSIONS)) -> dict:
+             spacing: float | None = None, maxfev: int = 20, candidates=tuple(EXTENSIONS), jobs: int = 1,
+             run_dir: Path | None = None) -> dict:
     """Run the whole procedure and write report.json, report.md, plots and model.json into ``out_dir``.
 
     Args:
@@ -80,6 +82,9 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
             scale (docs/scale.md), as are the margins around the source and the volume.
         maxfev: rollouts per fit (Nelder-Mead evaluations).
         candidates: names of the extensions tried (default all of :data:`EXTENSIONS`).
+        jobs: fits run side by side in this many processes (parallel.py); the report does not depend on it.
+        run_dir: a reconstruction of the scene: the plume flows around the obstacles it found too (scenery.py);
+            None: around the scene's declared obstacles.
 
     Returns:
         The report dict (report.json's content).
@@ -105,13 +110,16 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
         hi = np.asarray(src[0]) + factor * np.array([0.3, 0.8, 0.3])
     seed = visual_hull(observed, lo, hi, spacing)
     air_seed = visual_hull(observed, lo, hi, spacing * AIR_SPACING)
+    obstacles, body = scene_obstacles(scene_dir, run_dir)
+    if body is not None:
+        log.info("diagnose: the plume flows around the %s obstacles", "run's" if run_dir else "scene's declared")
     emission = emission_window(scene.source, observed, *src)  # the scene's window, else when the footage shows it
     log.info("diagnose: the source emits in frames [%d, %s) (from the %s)", emission.start,
              "end" if emission.stop is None else emission.stop, emission.source)
     setup = PlumeSetup(tuple(src[0]), float(src[1]), spacing, observed.fps, d - a, tuple(lo - 0.1 * factor),
                        tuple(hi + 0.1 * factor), seed, air_seed,
-                       emitting=np.array([emission.emits_at(a + t) for t in range(d - a)]))
-    sim = PlumeSimulator(setup)
+                       emitting=np.array([emission.emits_at(a + t) for t in range(d - a)]), obstacles=obstacles)
+    sim = PlumeSimulator(setup, body)
     cams = observed.cameras
     # particle footprint: the source spacing seen from the mean camera distance
     dist = np.mean([np.linalg.norm(cam.center - np.asarray(src[0])) for cam in cams])
@@ -120,28 +128,27 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
     fitter = Fitter(sim, observed.images, cams, sigma, tr)
     log.info("diagnose: %d views (%s), %d frames at %dx%d, %d seeded particles", len(cams),
              ", ".join(observed.names), d - a, cams[0].width, cams[0].height, len(seed))
-    bases = {}
-    for structure in STRUCTURES:  # the base model of each structure, then its control refit (alpha alone)
-        fit = fit_base(fitter, 2 * maxfev, structure)
-        log.info("base fit (%s): %s gain %.4g, train error %.4f, validation error %.4f", structure,
-                 _describe(fit.params), fit.params.gain, fitter.train_error(fit), fit.errors[va].mean())
-        fit = fit_candidate(fitter, fit, None, maxfev)
-        log.info("control refit (%s, alpha only): alpha %.4f, train error %.4f, validation error %.4f", structure,
-                 fit.params.alpha, fitter.train_error(fit), fit.errors[va].mean())
-        bases[structure] = fit
-    # the structure is chosen like a term: ambient_air if it lowers the validation error clearly (search.judge)
-    structure_judged = judge(bases["paper_gas"].errors[va], bases["ambient_air"].errors[va])
-    structure = "ambient_air" if structure_judged.passes else "paper_gas"
-    log.info("structure: %s (validation error paper_gas %.4f, ambient_air %.4f: gain %.1f %%, p %.2g)", structure,
-             structure_judged.before, structure_judged.after, 100 * structure_judged.relative_gain,
-             structure_judged.p_value)
-    base = bases[structure]
-    obs_o = observables(observed.images, cams, observed.fps)
-    base_o = observables(base.images, cams, observed.fps)
-    drift = _drift_velocity(obs_o.centroid[tr] - base_o.centroid[tr], observed.fps)
-    fits, judged = {}, {}
+    with FitPool(fitter, jobs) as pool:  # the two structures side by side, then the candidates
+        bases = {}
+        for structure, (fit, control) in zip(STRUCTURES, pool.map(fit_structure, [(s, maxfev) for s in STRUCTURES])):
+            log.info("base fit (%s): %s gain %.4g, train error %.4f, validation error %.4f", structure,
+                     _describe(fit.params), fit.params.gain, fitter.train_error(fit), fit.errors[va].mean())
+            log.info("control refit (%s, alpha only): alpha %.4f, train error %.4f, validation error %.4f",
+                     structure, control.params.alpha, fitter.train_error(control), control.errors[va].mean())
+            bases[structure] = control
+        # the structure is chosen like a term: ambient_air if it lowers the validation error clearly (search.judge)
+        structure_judged = judge(bases["paper_gas"].errors[va], bases["ambient_air"].errors[va])
+        structure = "ambient_air" if structure_judged.passes else "paper_gas"
+        log.info("structure: %s (validation error paper_gas %.4f, ambient_air %.4f: gain %.1f %%, p %.2g)",
+                 structure, structure_judged.before, structure_judged.after, 100 * structure_judged.relative_gain,
+                 structure_judged.p_value)
+        base = bases[structure]
+        obs_o = observables(observed.images, cams, observed.fps)
+        base_o = observables(base.images, cams, observed.fps)
+        drift = _drift_velocity(obs_o.centroid[tr] - base_o.centroid[tr], observed.fps)
+        fits = dict(zip(candidates, pool.map(fit_candidate, [(base, name, maxfev, drift) for name in candidates])))
+    judged = {}
     for name in candidates:
-        fits[name] = fit_candidate(fitter, base, name, maxfev, drift)
         judged[name] = judge(base.errors[va], fits[name].errors[va])
         log.info("candidate %s: %s, training error %.4f -> %.4f, validation error %.4f -> %.4f (gain %.1f %%, "
                  "p %.2g)", name, fits[name].params.extensions[name], fitter.train_error(base),

@@ -112,6 +112,13 @@ def fit_base(fitter: Fitter, maxfev: int, structure: str = "paper_gas") -> Fit:
                            [np.log(0.3), np.log(3.0), np.log(10.0)], [0.8, 0.6, 0.5], maxfev)
 
 
+def fit_structure(fitter: Fitter, structure: str, maxfev: int) -> tuple[Fit, Fit]:
+    """Steps 1 and 2 for one structure: its base model (:func:`fit_base`, 2 x ``maxfev`` rollouts) and the control
+    refit from there (alpha alone, ``maxfev`` rollouts; :func:`fit_candidate` with no extension)."""
+    base = fit_base(fitter, 2 * maxfev, structure)
+    return base, fit_candidate(fitter, base, None, maxfev)
+
+
 def fit_candidate(fitter: Fitter, base: Fit, name: str, maxfev: int, drift_velocity=None) -> Fit:
     """Step 3: refit alpha plus one extension's parameters from the base fit (training frames only).
 

@@ -144,3 +144,15 @@ def test_without_ray_batch_says_how_to_install_it(tmp_path, monkeypatch):
     manifest = write_manifest(tmp_path, GOOD + sample_scenes("four-view"))
     result = invoke("batch", manifest, "--out", tmp_path / "out")
     assert result.exit_code == 2 and "pip install 'fluidnexus[cluster]'" in result.output
+
+
+def test_diagnose_gets_the_tasks_cpus_as_jobs(tmp_path):
+    """A diagnose step runs its fits in as many processes as its task has CPUs, unless the manifest says."""
+    from fluidnexus.batch.steps import Layout, step_args
+
+    layout = Layout(tmp_path / "out")
+    for extra, jobs in (("", "3"), ("diagnose = { jobs = 1 }\n", "1")):
+        text = GOOD + sample_scenes("four-view") + 'steps = ["diagnose"]\n' + extra
+        scene = load_manifest(write_manifest(tmp_path, text)).scenes[0]
+        args = step_args("diagnose", scene.source, scene.options["diagnose"], layout, "cpu", cpus=3)
+        assert args.count("--jobs") == 1 and args[args.index("--jobs") + 1] == jobs, args

@@ -1,12 +1,13 @@
 """diagnose finds an effect hidden in data made by a different solver (tests/diagnose/eulerian_plume.py).
 
 Each test hides one effect (or two) at a magnitude drawn from a seeded range, runs diagnose on 48 frames (train
-0:32, validate 32:48; the burst 90 frames, 0:60 and 60:90) and requires the right name. Every diagnose here is
-``slow`` (each fits both model structures: 84-119 s on the idle 2-core VM, 2026-11-24; 4-11 min on a loaded one), so
-``make test`` runs only the visibility test; ``make test-slow`` runs all. Buoyancy decay, vorticity confinement,
-viscosity and swirl are ``xfail``: their data differ from a plain plume with the same generator constants
-(``test_hidden_effects_are_visible``), but diagnose does not name them. Buoyancy decay cannot be named from this
-footage by any model: a plain plume with weaker buoyancy matches its training frames
+0:32, validate 32:48; the burst 90 frames, 0:60 and 60:90) and requires the right name. Each diagnose fits both
+model structures, its fits side by side in as many processes as there are cores (``--jobs``, at most 6): 72-104 s
+each on the idle 2-core VM (2026-11-25; 111-183 s in one process). ``make test`` runs the fast tier the issue names
+(the plain plume, the paper's-gas control, wind, dissipation) and the visibility test; ``make test-slow`` runs the
+rest. Buoyancy decay, vorticity confinement, viscosity and swirl are ``xfail``: their data differ from a plain plume
+with the same generator constants (``test_hidden_effects_are_visible``), but diagnose does not name them. Buoyancy
+decay cannot be named from this footage by any model: a plain plume with weaker buoyancy matches its training frames
 (``test_nearest_plain_plume_on_the_training_frames``). In a burst (the source on for the first part of the window
 only) it can (``test_nearest_plain_plume_in_a_burst``), and diagnose names it there, but with a tau 3x too long
 (xfail). The measured reasons are in each marker and in docs/diagnose.md.
@@ -128,7 +129,6 @@ def test_hidden_effects_are_visible(template, tmp_path):
     assert visibility(template, tmp_path / "off", PlumeEffects(), plain) < 1e-9
 
 
-@pytest.mark.slow
 def test_diagnose_plain_plume_finds_none(template, tmp_path, ti_engine):
     """A plain grid plume rises in air: the gas in ambient air is the structure, and no term is found."""
     report = run_diagnose(template, tmp_path, PlumeEffects())
@@ -136,7 +136,6 @@ def test_diagnose_plain_plume_finds_none(template, tmp_path, ti_engine):
     assert report["finding"]["effect"] == "none", report["candidates"]
 
 
-@pytest.mark.slow
 def test_diagnose_pbf_gas_control_keeps_paper_gas(template, tmp_path, ti_engine):
     """The control: a plume made by the paper's PBF gas itself (tests/diagnose/pbf_plume.py: a finer lattice,
     jittered inflow) keeps the paper's gas as the structure, and no term is found."""
@@ -145,7 +144,6 @@ def test_diagnose_pbf_gas_control_keeps_paper_gas(template, tmp_path, ti_engine)
     assert report["finding"]["effect"] == "none", report["candidates"]
 
 
-@pytest.mark.slow
 def test_diagnose_finds_hidden_wind(template, tmp_path, ti_engine):
     """At the CLI's default budget (20 rollouts per fit; at 10 and 14 the base fit is not converged and the speed
     comes out 43-69 % high: docs/diagnose.md, "Re-measured with the structure level")."""
@@ -161,7 +159,6 @@ def test_diagnose_finds_hidden_wind(template, tmp_path, ti_engine):
     assert report["finding"]["gain"]["after"] < report["finding"]["gain"]["before"]
 
 
-@pytest.mark.slow
 def test_diagnose_finds_hidden_dissipation(template, tmp_path, ti_engine):
     rate = np.random.default_rng(12).uniform(0.4, 0.9)
     report = run_diagnose(template, tmp_path, PlumeEffects(rate=rate))

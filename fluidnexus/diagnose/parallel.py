@@ -1,0 +1,109 @@
+"""Diagnose's independent fits side by side (``diagnose --jobs N``).
+
+The base fits of the two structures do not depend on each other, and the candidates' refits on the chosen base do
+not either: each is one task. With one job the tasks run here, in order. With more, that many worker processes
+start (spawned: a forked Taichi runtime is not safe), each with the engine started as in this process and its own
+plume simulator and fitter built from the same inputs; a rollout does not depend on the process it runs in, so the
+report does not depend on ``jobs`` (a test compares). Every model a worker scored comes back with its task's result
+in the order of the tasks, as in a serial run, so the search spread (``search.search_spread``) sees the same fits.
+"""
+from __future__ import annotations
+
+import multiprocessing
+import os
+from concurrent.futures import ProcessPoolExecutor
+
+from fluidnexus.memory import RUNTIME_BYTES, Estimate, check
+
+from .plume import PlumeSimulator
+from .search import Fitter
+
+#: Most worker processes worth starting: one base fit per structure, then at most six candidates at once.
+MAX_JOBS = 6
+
+_fitter: Fitter | None = None  # a worker's own fitter
+
+
+def plan_jobs(requested: int | None, arch: str, limit: int) -> int:
+    """``--jobs``: the number given, or by default on the CPU the cores this process may use (at most
+    :data:`MAX_JOBS`) and no more workers than fit under ``limit`` bytes, on a GPU 1 (several processes sharing one
+    GPU are not measured). Each worker holds a runtime of its own (``memory.RUNTIME_BYTES``; the plume's fields are
+    small beside it). A number given that does not fit is refused (InputError naming ``--jobs``)."""
+    if requested is None:
+        if arch != "cpu":
+            return 1
+        try:
+            cores = len(os.sched_getaffinity(0))
+        except AttributeError:  # pragma: no cover - not Linux
+            cores = os.cpu_count() or 1
+        fit = int(limit // RUNTIME_BYTES) - 1  # this process's runtime first
+        return max(1, min(MAX_JOBS, cores, fit))
+    estimate = Estimate("diagnose")
+    if requested > 1:
+        estimate.add("worker processes", requested * RUNTIME_BYTES, "--jobs")
+    check(estimate, limit)
+    return requested
+
+
+class FitPool:
+    """Runs fit tasks ``fn(fitter, *args)`` (module-level functions) for ``fitter``, in ``jobs`` processes.
+
+    Use as a context manager; the workers start on entry and stop on exit.
+    """
+
+    def __init__(self, fitter: Fitter, jobs: int):
+        if jobs < 1:
+            raise ValueError(f"jobs must be at least 1, got {jobs}")
+        self.fitter, self.jobs = fitter, jobs
+        self._pool: ProcessPoolExecutor | None = None
+
+    def __enter__(self) -> "FitPool":
+        if self.jobs > 1:
+            from fluidnexus import engine
+
+            f = self.fitter
+            self._pool = ProcessPoolExecutor(self.jobs, mp_context=multiprocessing.get_context("spawn"),
+                                             initializer=_start,
+                                             initargs=(engine.current(), f.sim.setup, f.observed, f.cameras, f.sigma,
+                                                       f.train))
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(cancel_futures=True)
+            self._pool = None
+
+    def map(self, fn, arglists: list[tuple]) -> list:
+        """``[fn(fitter, *args) for args in arglists]``; the models the workers scored join ``fitter.scored``
+        (and their rollouts ``fitter.evaluations``) in task order."""
+        if self._pool is None:
+            return [fn(self.fitter, *args) for args in arglists]
+        futures = [self._pool.submit(_run, fn, args) for args in arglists]
+        results = []
+        for future in futures:
+            result, scored, evaluations = future.result()
+            self.fitter.scored.extend(scored)
+            self.fitter.evaluations += evaluations
+            results.append(result)
+        return results
+
+
+def _start(config, setup, observed, cameras, sigma, train) -> None:
+    """A worker's initialiser: the engine as in the parent, then its own simulator and fitter."""
+    global _fitter
+    from fluidnexus import engine
+
+    engine.init(arch=config.arch, precision=config.precision, debug=config.debug)
+    import taichi as ti
+
+    # workers that exit together race for the kernel cache's lock; the loser skips writing its (same) kernels and
+    # would print a warning for each try
+    ti.set_logging_level(ti.ERROR)
+    _fitter = Fitter(PlumeSimulator(setup), observed, cameras, sigma, train)
+
+
+def _run(fn, args: tuple):
+    """One task in a worker: its result, the models it scored and the rollouts it ran."""
+    scored, evaluations = len(_fitter.scored), _fitter.evaluations
+    result = fn(_fitter, *args)
+    return result, _fitter.scored[scored:], _fitter.evaluations - evaluations
