@@ -146,7 +146,9 @@ def test_diagnose_pbf_gas_control_keeps_paper_gas(template, tmp_path, ti_engine)
 
 def test_diagnose_finds_hidden_wind(template, tmp_path, ti_engine):
     """At the CLI's default budget (20 rollouts per fit; at 10 and 14 the base fit is not converged and the speed
-    comes out 43-69 % high: docs/diagnose.md, "Re-measured with the structure level")."""
+    comes out 43-69 % high: docs/diagnose.md, "Re-measured with the structure level"). The structure is not
+    asserted: at this budget the gas in air is 19.6 % better on the validation frames (0.668 against 0.831), just
+    under the structure's 20 % bar, so the wind is found on the paper's gas (2026-11-25; ambient_air at 10)."""
     rng = np.random.default_rng(11)
     speed, heading = rng.uniform(0.08, 0.14), rng.uniform(0, 2 * np.pi)
     wind = np.array([speed * np.cos(heading), 0.0, speed * np.sin(heading)])
@@ -162,6 +164,7 @@ def test_diagnose_finds_hidden_wind(template, tmp_path, ti_engine):
 def test_diagnose_finds_hidden_dissipation(template, tmp_path, ti_engine):
     rate = np.random.default_rng(12).uniform(0.4, 0.9)
     report = run_diagnose(template, tmp_path, PlumeEffects(rate=rate))
+    assert report["structure"]["name"] == "ambient_air", report["structure"]
     assert report["finding"]["effect"] == "dissipation", report["candidates"]
     assert abs(report["finding"]["params"]["rate"] - rate) < 0.4 * rate, (report["finding"], rate)
 
