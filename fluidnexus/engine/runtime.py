@@ -38,6 +38,27 @@ def cache_dir() -> Path:
     return Path(root) / "taichi"
 
 
+#: Taichi's kernel cache is guarded by a lock file that a process creates while it writes the cache at exit (a
+#: second or two) and removes after. A process killed in between leaves it behind, and from then on every process
+#: warns that it cannot take the lock and writes nothing to the cache. A lock older than this is such a leftover.
+STALE_LOCK_SECONDS = 120.0
+
+
+def clear_stale_lock(folder: Path, now: float | None = None) -> bool:
+    """Remove ``folder``'s cache lock (``ticache.lock``) when it is older than :data:`STALE_LOCK_SECONDS`; returns
+    whether it did."""
+    import time
+
+    lock = Path(folder) / "ticache.lock"
+    try:
+        if (time.time() if now is None else now) - lock.stat().st_mtime <= STALE_LOCK_SECONDS:
+            return False
+        lock.unlink()
+    except OSError:  # no lock (the usual case), or one another process removed first: nothing to clear
+        return False
+    return True
+
+
 def init(arch: str = "cpu", precision: str = "f32", debug: bool = False) -> RuntimeConfig:
     """Start Taichi once per process; a second call with the same settings is a no-op.
 
@@ -64,6 +85,7 @@ def init(arch: str = "cpu", precision: str = "f32", debug: bool = False) -> Runt
         return cfg
     if _current is not None:
         ti.reset()
+    clear_stale_lock(cache_dir())
     ti.init(
         arch=ti.cuda if arch == "cuda" else ti.cpu,
         default_fp=ti.f64 if precision == "f64" else ti.f32,
