@@ -91,8 +91,7 @@ def smoke_layer(video: np.ndarray, plate: np.ndarray, confidence: np.ndarray,
     if video.shape[1:] != plate.shape or confidence.shape != plate.shape[:2]:
         raise ValueError(f"video {video.shape}, plate {plate.shape} and confidence {confidence.shape} do not match")
     plate = np.asarray(plate, np.float32)
-    floor = max(MIN_CHANGE, NOISE_FACTOR * noise_level(video))
-    chunk = max(1, CHUNK_VALUES // plate.size)
+    floor, chunk = _floor(video), _chunk(plate)
     samples = _smoke_samples(video, plate, confidence >= CONFIDENT, floor, chunk)  # NoSmoke when there is none
     color = _dense_color(*samples) if color is None else np.asarray(color, np.float32).reshape(plate.shape[-1])
     step = color - plate  # [H, W, C]
@@ -118,10 +117,9 @@ def smoke_color(videos: list[np.ndarray], plates: list[np.ndarray], confidences:
     """
     images, backs = [], []
     for video, plate, confidence in zip(videos, plates, confidences):
-        floor = max(MIN_CHANGE, NOISE_FACTOR * noise_level(video))
         try:
-            image, back = _smoke_samples(video, np.asarray(plate, np.float32), confidence >= CONFIDENT, floor,
-                                         max(1, CHUNK_VALUES // plate.size))
+            image, back = _smoke_samples(video, np.asarray(plate, np.float32), confidence >= CONFIDENT,
+                                         _floor(video), _chunk(plate))
         except NoSmoke:
             continue
         images.append(image)
@@ -129,6 +127,16 @@ def smoke_color(videos: list[np.ndarray], plates: list[np.ndarray], confidences:
     if not images:
         raise NoSmoke("no view differs from its plate by more than its noise floor in any frame")
     return _dense_color(np.concatenate(images), np.concatenate(backs))
+
+
+def _floor(video: np.ndarray) -> float:
+    """A sample differing from its plate by less than this in every channel shows no smoke (module docstring)."""
+    return max(MIN_CHANGE, NOISE_FACTOR * noise_level(video))
+
+
+def _chunk(plate: np.ndarray) -> int:
+    """Frames per chunk: about ``CHUNK_VALUES`` values of a video of ``plate``'s size."""
+    return max(1, CHUNK_VALUES // plate.size)
 
 
 def _smoke_samples(video: np.ndarray, plate: np.ndarray, confident: np.ndarray, floor: float,
