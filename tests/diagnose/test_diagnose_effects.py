@@ -15,19 +15,21 @@ only) it can (``test_nearest_plain_plume_in_a_burst``), and diagnose names it th
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 from scipy import optimize
 
-from cli.main import main
 from fluidnexus.diagnose.observe import image_error
 from fluidnexus.diagnose.run import load_observed
 
 from .eulerian_plume import Grid, PlumeEffects, simulate, write_scene
 from .pbf_plume import simulate_pbf
 
+ROOT = Path(__file__).resolve().parents[2]
 FRAMES, TRAIN, VALIDATE = 48, "0:32", "32:48"
 FAST = ["--height", "40", "--arch", "cpu"]
 EVALS = 10  # rollouts per fit here; the CLI's default is 20 (the wind needs it)
@@ -44,9 +46,12 @@ def diagnose_density(template, tmp_path, density: np.ndarray, train: str = TRAIN
     frames; checks the outputs' form."""
     scene = write_scene(template, tmp_path / "scene", density, window=window)
     out = tmp_path / "diag"
-    result = CliRunner().invoke(main, ["diagnose", str(scene), "--out", str(out), "--train-frames", train,
-                                       "--validate-frames", validate, "--evals", str(evals), *FAST])
-    assert result.exit_code == 0, result.output + repr(result.exception)
+    # in its own process, as a user runs it: the engine in float32 (the suite's runs in float64, and the wind
+    # plume's structure gain sits at the bar: 22.5 % in float32, 19.6 % in float64; docs/diagnose.md)
+    result = subprocess.run([sys.executable, "-m", "cli", "diagnose", str(scene), "--out", str(out),
+                             "--train-frames", train, "--validate-frames", validate, "--evals", str(evals), *FAST],
+                            cwd=ROOT, capture_output=True, text=True)
+    assert result.returncode == 0, result.stdout + result.stderr
     report = json.loads((out / "report.json").read_text())
     assert set(report) == {"finding", "candidates", "windows", "views", "emission", "structure"}
     assert report["structure"]["name"] in ("paper_gas", "ambient_air")
@@ -129,7 +134,7 @@ def test_hidden_effects_are_visible(template, tmp_path):
     assert visibility(template, tmp_path / "off", PlumeEffects(), plain) < 1e-9
 
 
-def test_diagnose_plain_plume_finds_none(template, tmp_path, ti_engine):
+def test_diagnose_plain_plume_finds_none(template, tmp_path):
     """A plain grid plume rises in air: the gas in ambient air is the structure, and no term is found."""
     report = run_diagnose(template, tmp_path, PlumeEffects())
     assert report["structure"]["name"] == "ambient_air", report["structure"]
@@ -144,15 +149,16 @@ def test_diagnose_pbf_gas_control_keeps_paper_gas(template, tmp_path, ti_engine)
     assert report["finding"]["effect"] == "none", report["candidates"]
 
 
-def test_diagnose_finds_hidden_wind(template, tmp_path, ti_engine):
+def test_diagnose_finds_hidden_wind(template, tmp_path):
     """At the CLI's default budget (20 rollouts per fit; at 10 and 14 the base fit is not converged and the speed
-    comes out 43-69 % high: docs/diagnose.md, "Re-measured with the structure level"). The structure is not
-    asserted: at this budget the gas in air is 19.6 % better on the validation frames (0.668 against 0.831), just
-    under the structure's 20 % bar, so the wind is found on the paper's gas (2026-11-25; ambient_air at 10)."""
+    comes out 43-69 % high: docs/diagnose.md, "Re-measured with the structure level"). The gas in air is the
+    structure (22.5 % better than the paper's gas on the validation frames, 0.645 against 0.832; in the suite's
+    float64 engine it was 19.6 %, under the bar: hence diagnose in its own process) and the wind is found on it."""
     rng = np.random.default_rng(11)
     speed, heading = rng.uniform(0.08, 0.14), rng.uniform(0, 2 * np.pi)
     wind = np.array([speed * np.cos(heading), 0.0, speed * np.sin(heading)])
     report = run_diagnose(template, tmp_path, PlumeEffects(wind=tuple(wind)), evals=20)
+    assert report["structure"]["name"] == "ambient_air", report["structure"]
     assert report["finding"]["effect"] == "wind", report["candidates"]
     v = np.asarray(report["finding"]["params"]["velocity"])
     cos = v @ wind / (np.linalg.norm(v) * speed)
@@ -161,7 +167,7 @@ def test_diagnose_finds_hidden_wind(template, tmp_path, ti_engine):
     assert report["finding"]["gain"]["after"] < report["finding"]["gain"]["before"]
 
 
-def test_diagnose_finds_hidden_dissipation(template, tmp_path, ti_engine):
+def test_diagnose_finds_hidden_dissipation(template, tmp_path):
     rate = np.random.default_rng(12).uniform(0.4, 0.9)
     report = run_diagnose(template, tmp_path, PlumeEffects(rate=rate))
     assert report["structure"]["name"] == "ambient_air", report["structure"]
@@ -214,7 +220,7 @@ def test_nearest_plain_plume_on_the_training_frames(template, tmp_path, effects,
                    "training frames and 0.003-0.015 on the validation frames (test_nearest_plain_plume_on_the_"
                    "training_frames); the decay search fits tau 0.53 s and raises the validation error by 41 % "
                    "(finding: none; wind gains 17.1 % at 1.6 cm/s, under the 20 % bar)")
-def test_diagnose_finds_hidden_buoyancy_decay(template, tmp_path, ti_engine):
+def test_diagnose_finds_hidden_buoyancy_decay(template, tmp_path):
     tau = decay_tau()
     report = run_diagnose(template, tmp_path, PlumeEffects(tau=tau))
     assert report["finding"]["effect"] == "buoyancy_decay", report["candidates"]
@@ -247,7 +253,7 @@ def test_nearest_plain_plume_in_a_burst(template, tmp_path):
                    "inlet of 0.52 m/s (the generator's 0.25) in XSPH c 0.45 with alpha -0.08, so part of the slowing "
                    "is the inlet's momentum running out in viscous air and the decay refitted on top (with alpha "
                    "alone) is slower. Not the budget: at 20 evaluations tau 5.4 s (gain 35.9 %, vorticity 33.2 %)")
-def test_diagnose_finds_buoyancy_decay_in_a_burst(template, tmp_path, ti_engine):
+def test_diagnose_finds_buoyancy_decay_in_a_burst(template, tmp_path):
     """Hidden buoyancy decay (the decay test's draw, tau 0.93 s) in a burst whose scene declares its emission
     window: diagnose's plumes emit in it too (diagnose_density checks report.json's ``emission``), and it names
     ``buoyancy_decay`` with tau within 40 %."""
@@ -265,7 +271,7 @@ def test_diagnose_finds_buoyancy_decay_in_a_burst(template, tmp_path, ti_engine)
                    "(epsilon 0.01) raises the validation error by 10.7 %, and base fits within 5 % of the control's "
                    "training error differ by 20.5 % in validation error. The grid's confinement slows the plume "
                    "without widening it, the PBF term widens it without slowing it: less buoyancy explains it better")
-def test_diagnose_finds_hidden_vorticity(template, tmp_path, ti_engine):
+def test_diagnose_finds_hidden_vorticity(template, tmp_path):
     epsilon = np.random.default_rng(14).uniform(10.0, 14.0)
     report = run_diagnose(template, tmp_path, PlumeEffects(epsilon=epsilon))
     assert report["finding"]["effect"] == "vorticity", report["candidates"]
@@ -277,7 +283,7 @@ def test_diagnose_finds_hidden_vorticity(template, tmp_path, ti_engine):
                    "momentum loss to still air; the viscosity candidate (c 0.39) gains 3.4 % and dissipation 8.5 %, "
                    "both under the 20 % a finding needs: none. Barely identifiable (the nearest plain plume matches "
                    "the training frames to 0.004)")
-def test_diagnose_finds_hidden_viscosity(template, tmp_path, ti_engine):
+def test_diagnose_finds_hidden_viscosity(template, tmp_path):
     nu = np.random.default_rng(15).uniform(2e-3, 4e-3)
     report = run_diagnose(template, tmp_path, PlumeEffects(nu=nu))
     assert report["finding"]["effect"] == "viscosity", report["candidates"]
@@ -289,13 +295,13 @@ def test_diagnose_finds_hidden_viscosity(template, tmp_path, ti_engine):
                    "(hidden 15.4 rad/s) and gains 7.9 %, while a wind of 0.073 m/s gains 24.8 % and is named: with "
                    "the paper's gas swirled particles left in an open cone (validation error doubled); in the air "
                    "swirl helps, but the footage's swirl is explained better by a drift")
-def test_diagnose_finds_hidden_swirl(template, tmp_path, ti_engine):
+def test_diagnose_finds_hidden_swirl(template, tmp_path):
     report = run_diagnose(template, tmp_path, PlumeEffects(omega=swirl_omega()))
     assert report["finding"]["effect"] == "swirl", report["candidates"]
 
 
 @pytest.mark.slow
-def test_diagnose_two_effects_names_the_stronger(template, tmp_path, ti_engine):
+def test_diagnose_two_effects_names_the_stronger(template, tmp_path):
     """Wind and dissipation together: the finding is the effect that changes the footage more (measured
     alone against the plain plume)."""
     rng = np.random.default_rng(17)
