@@ -14,7 +14,7 @@ from fluidnexus.scene import load_ground_truth, load_scene
 from fluidnexus.scene_scale import scene_factor
 
 from .emission import emission_window
-from .footage import smoke_images, usable
+from .footage import run_layer, smoke_images, usable
 from .observe import Observed, observables
 from .plume import AIR_SPACING, EXTENSIONS, STRUCTURES, PlumeSetup, PlumeSimulator
 from .report import write_outputs
@@ -27,10 +27,11 @@ log = logging.getLogger("fluidnexus")
 DEFAULT_SOURCE = ((0.34, 0.0, -0.225), 0.09)  # ScalarFlow inflow (docs/simulator.md)
 
 
-def load_observed(scene_dir: Path, first: int, last: int, height: int) -> Observed:
+def load_observed(scene_dir: Path, first: int, last: int, height: int, layer=None) -> Observed:
     """Every real view of the scene (input views, novel views that have footage, ground truth whose camera
-    stands still) as images of the smoke (footage.py: gray frames, or the smoke's opacity over the view's plate)
-    of ``height`` rows, frames [first, last)."""
+    stands still) as images of the smoke (footage.py: gray frames, or the smoke's opacity over the view's plate,
+    or over the static ``layer`` of a reconstruction where it has none) of ``height`` rows, frames
+    [first, last)."""
     scene = load_scene(scene_dir)
     views = [(v.name, v.camera, scene.video_path(v)) for v in scene.views if v.video is not None]
     for g in load_ground_truth(scene_dir):
@@ -38,15 +39,15 @@ def load_observed(scene_dir: Path, first: int, last: int, height: int) -> Observ
             log.info("diagnose: ground-truth view %s left out: its camera moves (one pose per frame)", g.name)
             continue
         views.append((g.name, g.camera, scene.root / g.video))
-    views = [v for v in views if usable(scene, v[0])]
+    views = [v for v in views if usable(scene, v[0], layer)]
     if not views:
         raise InputError(scene_dir, "views", "diagnose needs at least one view with footage")
     if not 0 <= first < last <= scene.frame_count:
         raise InputError(scene_dir, "frames", f"windows {first}:{last} do not fit {scene.frame_count} frames")
     cams = [cam.resized(max(8, round(cam.width * height / cam.height)), height) for _, cam, _ in views]
     names = [name for name, _, _ in views]
-    imgs = smoke_images(scene, [(name, path, cam.width, cam.height) for (name, _, path), cam in zip(views, cams)],
-                        slice(first, last))
+    imgs = smoke_images(scene, [(name, path, small.width, small.height, cam) for (name, cam, path), small
+                                in zip(views, cams)], slice(first, last), layer)
     return Observed(tuple(names), tuple(cams), np.asarray(imgs, np.float64), first, scene.fps)
 
 
@@ -83,8 +84,9 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
         maxfev: rollouts per fit (Nelder-Mead evaluations).
         candidates: names of the extensions tried (default all of :data:`EXTENSIONS`).
         jobs: fits run side by side in this many processes (parallel.py); the report does not depend on it.
-        run_dir: a reconstruction of the scene: the plume flows around the obstacles it found too (scenery.py);
-            None: around the scene's declared obstacles.
+        run_dir: a reconstruction of the scene: the plume flows around the obstacles it found too (scenery.py),
+            and views without a plate are seen over its static layer (footage.py); None: around the scene's
+            declared obstacles, and such views are left out.
 
     Returns:
         The report dict (report.json's content).
@@ -101,7 +103,7 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
     scene = load_scene(scene_dir)
     factor = scene_factor(scene)
     spacing = 0.02 * factor if spacing is None else spacing
-    observed = load_observed(scene_dir, a, d, height)
+    observed = load_observed(scene_dir, a, d, height, run_layer(run_dir))
     src = (scene.source.center, scene.source.radius) if scene.source else DEFAULT_SOURCE
     if scene.volume:
         lo, hi = np.asarray(scene.volume.min, float), np.asarray(scene.volume.max, float)
