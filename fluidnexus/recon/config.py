@@ -55,6 +55,10 @@ class ReconConfig:
             ``auto``: fit on footage over a backdrop (a scene with clean plates or a backdrop colour other than
             black), constant on footage over black (the release's constants were tuned on ScalarFlow's glowing
             smoke on black).
+        physical_support: ``on``: before each frame's dynamics, physical particles at rest under the visual particles
+            that have none within h (``recon/support.py``); ``off``: the paper's gas only; ``auto``: on over a
+            backdrop, off on black (the rule of ``initial_look``; measured on PINF's Sphere and the composite
+            backdrop scene, not on ScalarFlow, which stays as it was). config.json records the resolved value.
         visual_spacing, visual_radius: visual emitter lattice spacing and disk radius, metres.
         init_visual_radius: radius of the frame-0 visual cylinder, metres.
         physical_spacing: physical initial-lattice spacing, metres.
@@ -111,6 +115,7 @@ class ReconConfig:
     stabilization_steps: int = 20
     static_iters: int = 400
     initial_look: str = "auto"
+    physical_support: str = "auto"
     length_scale: float = 1.0
     max_loss: float = 1e6
 
@@ -121,6 +126,7 @@ class ReconConfig:
             "init_iters": self.init_iters >= 0, "dynamics_iters": self.dynamics_iters >= 0,
             "appearance_iters": self.appearance_iters >= 0, "stabilization_steps": self.stabilization_steps >= 0,
             "static_iters": self.static_iters >= 0, "initial_look": self.initial_look in ("auto", "fit", "constant"),
+            "physical_support": self.physical_support in ("auto", "on", "off"),
             "frames": self.frames[0] >= 0 and (self.frames[1] is None or self.frames[1] > self.frames[0]),
         }
         for name in ("lr_position", "visual_sigma", "scale0", "visual_spacing", "visual_radius",

@@ -43,6 +43,7 @@ from ..backdrop import scene_backdrop
 from ..static import STATIC_FILE, save_static
 from .scenery import declared_scenery, fit_scenery
 from .smoke import Smoke
+from .support import support
 from .timing import Stopwatch
 from .workspace import Workspace
 
@@ -84,8 +85,11 @@ def capacities(n_frames: int, setup: RunSetup, source: Source, n_visual: int) ->
     cx, cy, cz = source.center
     n0 = len(cylinder_lattice((cx, cz), cfg.physical_radius, 0.0, cfg.physical_height, cfg.physical_spacing))
     steps = n_frames + cfg.stabilization_steps + 1
-    return (n0 + steps * physical_source(source, cfg).count + 64,
-            n_visual + (n_frames + 1) * visual_source(source, cfg).count + 64)
+    visual = n_visual + (n_frames + 1) * visual_source(source, cfg).count + 64
+    physical = n0 + steps * physical_source(source, cfg).count + 64
+    if cfg.physical_support == "on":  # at most one seeded particle per visual particle (support.py)
+        physical += visual
+    return physical, visual
 
 
 def locate_smoke(scene: Scene, obs, cfg: ReconConfig, obstacle=None) -> tuple[FoundSource, np.ndarray]:
@@ -143,6 +147,7 @@ def reconstruct(scene: Scene, out: str | Path, setup: RunSetup, resume: bool = F
         RunError: the optimisation diverged or a frame could not be written; the last good frame is kept.
     """
     out = Path(out)
+    setup = replace(setup, config=_physical_support(scene, setup.config))
     cfg = setup.config
     frames = resolve_frames(scene, cfg.frames)
     declared = declared_scenery(scene)  # before anything is written
@@ -191,6 +196,13 @@ def over_backdrop(scene: Scene) -> bool:
     """The footage shows the smoke over a backdrop: the scene has clean plates or a backdrop colour other than
     black."""
     return bool(scene.backgrounds) or (scene.backdrop_color is not None and any(scene.backdrop_color))
+
+
+def _physical_support(scene: Scene, cfg: ReconConfig) -> ReconConfig:
+    """``cfg`` with ``physical_support`` resolved: ``auto`` is on over a backdrop, off on black."""
+    if cfg.physical_support != "auto":
+        return cfg
+    return replace(cfg, physical_support="on" if over_backdrop(scene) else "off")
 
 
 def _initial_look(scene: Scene, cfg: ReconConfig, obs, seeds: np.ndarray, out: Path, resume: bool) -> ReconConfig:
@@ -269,6 +281,9 @@ def inside(p: torch.Tensor, volume, margin: float) -> torch.Tensor:
 
 def _one_frame(prev: Smoke, t, source, obs, ws, cfg, bar, watch, out, volume) -> Smoke:
     views = _views(obs, t, ws.dtype)
+    if cfg.physical_support == "on":
+        log.info("frame %d: %d physical particles seeded under the visual particles without any", t,
+                 support(prev, ws, cfg.physical_spacing))
     emit(prev, source, cfg, t)
     try:
         with watch.measure("dynamics"):
