@@ -87,7 +87,8 @@ def capacities(n_frames: int, setup: RunSetup, source: Source, n_visual: int) ->
     steps = n_frames + cfg.stabilization_steps + 1
     visual = n_visual + (n_frames + 1) * visual_source(source, cfg).count + 64
     physical = n0 + steps * physical_source(source, cfg).count + 64
-    if cfg.physical_support == "on":  # at most one seeded particle per visual particle (support.py)
+    if cfg.physical_support == "on":  # a frame seeds at most one particle per visual particle (support.py);
+        # survivors of earlier frames can exceed this, and then the workspace grows (Workspace.reserve)
         physical += visual
     return physical, visual
 
