@@ -13,10 +13,16 @@ more than the noise floor, A is the per-channel median colour of the ``DENSE_FRA
 under A itself, found by a fixed-point iteration that starts from the samples farthest from their plate. The
 samples farthest from the plate are not simply the densest (a sample over a backdrop far from A differs more at
 the same opacity); the fixed point picks the samples that lie beyond all others along their line from B through A.
-Smoke that is never opaque yields the colour of its densest part, a mix of A and the backdrop behind it, and
-opacities scaled up to match (their product with ``A - B`` is what the footage fixes); over a plain backdrop that
-is the same layer, over a textured one the layer carries some of the texture and is too bright or too dark. A
-user who knows the smoke's colour (white steam) gives it instead (``color``; ``synth --smoke-color``).
+**Then no sample may be more than opaque**: a sample lies between its plate and A (``0 <= a <= 1``), so in each
+channel A is at least every sample that is brighter than its plate and at most every one that is darker. Per
+channel, A is moved out to the ``BEYOND`` quantile of the samples on each side (those differing by more than
+``MIN_CHANGE`` in that channel; quantiles for codec noise and plate errors); where the two bounds contradict each
+other the side with more samples wins. For smoke opaque somewhere the bound is the median itself; for smoke that
+is never opaque the median is a mix of A and the backdrop behind the densest smoke, and the bound moves it towards
+A as far as the footage proves (the brightest smoke over the brightest backdrop it crosses). What is left between
+the bound and A is not identifiable from one video over a smooth backdrop: ``a (A - B)`` is what the footage
+fixes; the layer then carries some of the backdrop's texture and is too bright or too dark. A user who knows the
+smoke's colour (white steam) gives it instead (``color``; ``synth --smoke-color``).
 
 **Ill-conditioned pixels**, where the plate is close to the smoke's colour (``|A - B| < MIN_CONTRAST``), do not
 show the smoke: there the denominator is held at ``MIN_CONTRAST^2``, so noise is amplified at most
@@ -43,6 +49,7 @@ MIN_DENSE = 16  # ... and at least this many
 POOL = 200_000  # smoke samples kept (evenly spread over the video) to estimate the colour
 ITERATIONS = 20  # fixed-point iterations for the colour, at most
 TOLERANCE = 1e-4  # ... stopping once no channel moves by more
+BEYOND = 0.999  # per channel, the colour lies beyond this share of the samples on its side of their plate
 CHUNK_VALUES = 1 << 24  # float32 values per chunk of frames (64 MB)
 
 
@@ -182,4 +189,22 @@ def _dense_color(image: np.ndarray, back: np.ndarray) -> np.ndarray:
         color = new
         if moved < TOLERANCE:
             break
-    return color.astype(np.float32)
+    return _beyond_samples(color, image, back).astype(np.float32)
+
+
+def _beyond_samples(color: np.ndarray, image: np.ndarray, back: np.ndarray) -> np.ndarray:
+    """[C] ``color`` moved out, per channel, so that all but ``1 - BEYOND`` of the samples lie between their plate
+    and it (module docstring): at least the ``BEYOND`` quantile of those brighter than their plate by more than
+    ``MIN_CHANGE`` and at most the ``1 - BEYOND`` quantile of those darker; contradicting bounds: the side with
+    more samples."""
+    out = np.array(color, np.float64)
+    for c in range(len(out)):
+        diff = image[:, c] - back[:, c]
+        above, below = image[diff > MIN_CHANGE, c], image[diff < -MIN_CHANGE, c]
+        low = np.quantile(above, BEYOND) if len(above) >= MIN_DENSE else -np.inf
+        high = np.quantile(below, 1 - BEYOND) if len(below) >= MIN_DENSE else np.inf
+        if low <= high:
+            out[c] = min(max(out[c], low), high)
+        else:
+            out[c] = low if len(above) >= len(below) else high
+    return out

@@ -19,7 +19,7 @@ from .scenes import backdrop, noise
 WIDTH, HEIGHT, FRAMES = 32, 24, 8
 SMOKE = {"bright": (0.95, 0.93, 0.9), "dark": (0.1, 0.12, 0.15)}  # on a dark / a bright textured backdrop
 ALPHA_MAE = 0.015  # measured 0.0071 (bright smoke) and 0.0084 (dark smoke) with noise sigma 0.004
-COLOR_ERROR = 0.01  # per channel; measured 0.0021 and 0.0023
+COLOR_ERROR = 0.015  # per channel; measured 0.0081 and 0.0067 (the bound's 99.9 % quantile takes ~2 sigma of noise)
 
 
 def opacity(seed: int = 3) -> np.ndarray:
@@ -95,6 +95,24 @@ def test_smoke_that_is_never_opaque_needs_its_colour():
     np.testing.assert_array_equal(given.color, white)
     assert np.abs(given.alpha - alpha).mean() < ALPHA_MAE  # measured 0.0106: the noise floor cuts thin smoke
     assert np.abs(given.layer - truth).mean() < 0.3 * np.abs(guessed.layer - truth).mean()  # 0.011 against 0.047
+
+
+def test_the_colour_lies_beyond_the_samples():
+    """White smoke at most 0.6 opaque, densest over the dark end of a gray ramp (0.2 to 0.9) and thin over the
+    bright end: the densest smoke alone gives a dark mix (0.70); no sample may be more than opaque, so the colour
+    is at least the brightest smoke seen, and the layer is nearer the smoke."""
+    x = np.linspace(0, 1, WIDTH, dtype=np.float32)
+    back = np.repeat((0.2 + 0.7 * x)[None, :, None], HEIGHT, axis=0)
+    rng = np.random.default_rng(3)
+    alpha = np.stack([0.6 * np.exp(-((x - 0.05 * t / FRAMES) / 0.6) ** 2) * (0.7 + 0.3 * noise(rng, HEIGHT, WIDTH))
+                      for t in range(FRAMES)])
+    video = composite(back, alpha, [1.0], 0.004)
+    smoke = smoke_layer(video, back, np.ones((HEIGHT, WIDTH), np.float32))
+    seen = video[video - back > 0.02]
+    assert smoke.color[0] >= np.quantile(seen, 0.999) - 1e-6  # measured 0.853; the densest smoke's median: 0.696
+    raw = (video - back)[..., 0] / (smoke.color[0] - back[..., 0])
+    assert (raw[video[..., 0] - back[..., 0] > 0.02] > 1).mean() <= 0.002  # all but the 0.1 % quantile: 0.1 %
+    assert np.abs(smoke.layer[..., 0] - alpha).mean() < 0.08  # measured 0.061; the densest's median: 0.144
 
 
 def test_no_smoke_is_refused():
