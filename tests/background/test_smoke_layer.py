@@ -158,7 +158,9 @@ def test_synth_writes_smoke_layers_over_black(tmp_path):
         assert np.abs(layer - truth)[~empty].mean() < 0.1 * truth[~empty].mean()  # the smoke kept: measured 5 %
         record = plated.view(name).provenance["smoke_layer"]
         assert record["over"] == "black" and record["input_plate"] == "backgrounds/train02.png"
-        assert np.abs(np.array(record["smoke_color"]) - TINT).max() < 0.05  # measured 0.022 (H.264 chroma)
+        # measured 0.045, H.264 chroma: the bound's 99.9 % quantile takes the codec's error on opaque smoke (the
+        # median alone: 0.022)
+        assert np.abs(np.array(record["smoke_color"]) - TINT).max() < 0.06
         assert "smoke_layer" not in raw.view(name).provenance
     ok("refine", plated.root)  # keeps the record with the refined video
     assert load_scene(plated.root).view("train00").provenance["smoke_layer"] == record
