@@ -13,13 +13,15 @@ more than the noise floor, A is the per-channel median colour of the ``DENSE_FRA
 under A itself, found by a fixed-point iteration that starts from the samples farthest from their plate. The
 samples farthest from the plate are not simply the densest (a sample over a backdrop far from A differs more at
 the same opacity); the fixed point picks the samples that lie beyond all others along their line from B through A.
-**Then no sample may be more than opaque**: a sample lies between its plate and A (``0 <= a <= 1``), so in each
-channel A is at least every sample that is brighter than its plate and at most every one that is darker. Per
-channel, A is moved out to the ``BEYOND`` quantile of the samples on each side (those differing by more than
-``MIN_CHANGE`` in that channel; quantiles for codec noise and plate errors); where the two bounds contradict each
-other the side with more samples wins. For smoke opaque somewhere the bound is the median itself; for smoke that
-is never opaque the median is a mix of A and the backdrop behind the densest smoke, and the bound moves it towards
-A as far as the footage proves (the brightest smoke over the brightest backdrop it crosses). What is left between
+**Then no sample may be more than opaque**: a sample lies between its plate and A (``0 <= a <= 1``), so in gray
+A is at least every sample that is brighter than its plate and at most every one that is darker. The gray of A is
+moved out to the ``BEYOND`` quantile of the samples on each side (those differing from their plate by more than
+``MIN_CHANGE`` in gray; quantiles for codec noise and plate errors; where the two bounds contradict each other the
+side with more samples wins), along the line from the plate behind the densest smoke through the median: the
+median of smoke that is never opaque is a mix of A and that plate, so A lies on that line, and the hue comes from
+the median, not from a channel's extreme samples (which take a codec's chroma error). For smoke opaque somewhere
+the bound is the median itself; for smoke that is never opaque it moves the colour towards A as far as the
+footage proves (the brightest smoke over the brightest backdrop it crosses). What is left between
 the bound and A is not identifiable from one video over a smooth backdrop: ``a (A - B)`` is what the footage
 fixes; the layer then carries some of the backdrop's texture and is too bright or too dark. A user who knows the
 smoke's colour (white steam) gives it instead (``color``; ``synth --smoke-color``).
@@ -41,6 +43,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fluidnexus.backdrop import LUMA
+
 from .plates import CONFIDENT, MIN_CHANGE, NOISE_FACTOR, noise_level
 
 MIN_CONTRAST = 0.1  # |A - B| (Euclidean over the channels, [0, 1] units) below which a pixel is ill-conditioned
@@ -49,7 +53,7 @@ MIN_DENSE = 16  # ... and at least this many
 POOL = 200_000  # smoke samples kept (evenly spread over the video) to estimate the colour
 ITERATIONS = 20  # fixed-point iterations for the colour, at most
 TOLERANCE = 1e-4  # ... stopping once no channel moves by more
-BEYOND = 0.999  # per channel, the colour lies beyond this share of the samples on its side of their plate
+BEYOND = 0.999  # in gray, the colour lies beyond this share of the samples on its side of their plate
 CHUNK_VALUES = 1 << 24  # float32 values per chunk of frames (64 MB)
 
 
@@ -172,39 +176,47 @@ def _smoke_samples(video: np.ndarray, plate: np.ndarray, confident: np.ndarray, 
 def _dense_color(image: np.ndarray, back: np.ndarray) -> np.ndarray:
     """[C] the colour of the densest smoke among samples ``image`` over ``back`` ([N, C] each): the fixed point of
     "the median of the ``DENSE_FRACTION`` samples with the largest opacity under this colour" (module docstring),
-    started from the samples farthest from their plate."""
+    started from the samples farthest from their plate, then moved out to the samples' bound
+    (:func:`_beyond_samples`)."""
     count = min(len(image), max(MIN_DENSE, math.ceil(DENSE_FRACTION * len(image))))
-    far = np.argpartition(-np.linalg.norm(image - back, axis=1), count - 1)[:count]
-    color = np.median(image[far], axis=0)
+    dense = np.argpartition(-np.linalg.norm(image - back, axis=1), count - 1)[:count]
+    color, behind = np.median(image[dense], axis=0), np.median(back[dense], axis=0)
     for _ in range(ITERATIONS):
         step = color - back
         contrast2 = (step * step).sum(axis=1)
-        usable = contrast2 >= MIN_CONTRAST ** 2
-        if usable.sum() < count:
+        usable = np.flatnonzero(contrast2 >= MIN_CONTRAST ** 2)
+        if len(usable) < count:
             break
-        alpha = ((image - back) * step).sum(axis=1)[usable] / contrast2[usable]
-        dense = np.argpartition(-alpha, count - 1)[:count]
-        new = np.median(image[usable][dense], axis=0)
+        alpha = ((image[usable] - back[usable]) * step[usable]).sum(axis=1) / contrast2[usable]
+        dense = usable[np.argpartition(-alpha, count - 1)[:count]]
+        new = np.median(image[dense], axis=0)
         moved = float(np.abs(new - color).max())
-        color = new
+        color, behind = new, np.median(back[dense], axis=0)
         if moved < TOLERANCE:
             break
-    return _beyond_samples(color, image, back).astype(np.float32)
+    return _beyond_samples(color, behind, image, back).astype(np.float32)
 
 
-def _beyond_samples(color: np.ndarray, image: np.ndarray, back: np.ndarray) -> np.ndarray:
-    """[C] ``color`` moved out, per channel, so that all but ``1 - BEYOND`` of the samples lie between their plate
-    and it (module docstring): at least the ``BEYOND`` quantile of those brighter than their plate by more than
-    ``MIN_CHANGE`` and at most the ``1 - BEYOND`` quantile of those darker; contradicting bounds: the side with
-    more samples."""
-    out = np.array(color, np.float64)
-    for c in range(len(out)):
-        diff = image[:, c] - back[:, c]
-        above, below = image[diff > MIN_CHANGE, c], image[diff < -MIN_CHANGE, c]
-        low = np.quantile(above, BEYOND) if len(above) >= MIN_DENSE else -np.inf
-        high = np.quantile(below, 1 - BEYOND) if len(below) >= MIN_DENSE else np.inf
-        if low <= high:
-            out[c] = min(max(out[c], low), high)
-        else:
-            out[c] = low if len(above) >= len(below) else high
-    return out
+def _luma(x: np.ndarray) -> np.ndarray:
+    """The gray of colours [..., C] (Rec. 601 weights for RGB, as gray footage is read; the value itself for C=1)."""
+    return x @ LUMA if x.shape[-1] == 3 else x.mean(axis=-1)
+
+
+def _beyond_samples(color: np.ndarray, behind: np.ndarray, image: np.ndarray, back: np.ndarray) -> np.ndarray:
+    """[C] ``color`` (the densest smoke's, over the plate colour ``behind``) moved out along the line from
+    ``behind`` through it, so that all but ``1 - BEYOND`` of the samples lie between their plate and it in gray
+    (module docstring): its gray at least the ``BEYOND`` quantile of the samples brighter than their plate by more
+    than ``MIN_CHANGE`` and at most the ``1 - BEYOND`` quantile of those darker; contradicting bounds: the side
+    with more samples. Clipped to [0, 1]."""
+    gray, plate = _luma(image), _luma(back)
+    above, below = gray[gray - plate > MIN_CHANGE], gray[gray - plate < -MIN_CHANGE]
+    low = np.quantile(above, BEYOND) if len(above) >= MIN_DENSE else -np.inf
+    high = np.quantile(below, 1 - BEYOND) if len(below) >= MIN_DENSE else np.inf
+    now, base = float(_luma(color)), float(_luma(behind))
+    if low <= high:
+        target = min(max(now, low), high)
+    else:
+        target = low if len(above) >= len(below) else high
+    if target == now or abs(now - base) < MIN_CHANGE:  # within the bounds, or no gray to scale along
+        return np.asarray(color, np.float64)
+    return np.clip(behind + (color - behind) * (target - base) / (now - base), 0.0, 1.0)
