@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fluidnexus.backdrop import LUMA
+from fluidnexus.backdrop import to_channels
 
 from .plates import CONFIDENT, MIN_CHANGE, NOISE_FACTOR, noise_level
 
@@ -197,22 +197,17 @@ def _dense_color(image: np.ndarray, back: np.ndarray) -> np.ndarray:
     return _beyond_samples(color, behind, image, back).astype(np.float32)
 
 
-def _luma(x: np.ndarray) -> np.ndarray:
-    """The gray of colours [..., C] (Rec. 601 weights for RGB, as gray footage is read; the value itself for C=1)."""
-    return x @ LUMA if x.shape[-1] == 3 else x.mean(axis=-1)
-
-
 def _beyond_samples(color: np.ndarray, behind: np.ndarray, image: np.ndarray, back: np.ndarray) -> np.ndarray:
     """[C] ``color`` (the densest smoke's, over the plate colour ``behind``) moved out along the line from
     ``behind`` through it, so that all but ``1 - BEYOND`` of the samples lie between their plate and it in gray
     (module docstring): its gray at least the ``BEYOND`` quantile of the samples brighter than their plate by more
     than ``MIN_CHANGE`` and at most the ``1 - BEYOND`` quantile of those darker; contradicting bounds: the side
     with more samples. Clipped to [0, 1]."""
-    gray, plate = _luma(image), _luma(back)
+    gray, plate = to_channels(image, 1)[:, 0], to_channels(back, 1)[:, 0]
     above, below = gray[gray - plate > MIN_CHANGE], gray[gray - plate < -MIN_CHANGE]
     low = np.quantile(above, BEYOND) if len(above) >= MIN_DENSE else -np.inf
     high = np.quantile(below, 1 - BEYOND) if len(below) >= MIN_DENSE else np.inf
-    now, base = float(_luma(color)), float(_luma(behind))
+    now, base = float(to_channels(color, 1)[0]), float(to_channels(behind, 1)[0])
     if low <= high:
         target = min(max(now, low), high)
     else:
