@@ -10,7 +10,9 @@ the images is carried by the smoke particles themselves, each with brightness ``
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
+from itertools import islice
 
 import numpy as np
 
@@ -150,10 +152,31 @@ class PlumeSetup:
 
 @dataclass
 class Rollout:
-    """Particle positions [N_t, 3] m and ages [N_t] s at each frame of a rollout."""
+    """Particle positions [N_t, 3] m and ages [N_t] s at each frame of a rollout (the first frames of it while
+    ``rest`` still holds frames to simulate)."""
 
     positions: list
     ages: list
+    rest: Iterator | None = None
+
+    @classmethod
+    def start(cls, frames: Iterator, count: int | None = None) -> "Rollout":
+        """The first ``count`` frames (None: all) of ``frames`` (:meth:`PlumeSimulator.frames`)."""
+        out = cls([], [], frames)
+        out.extend(count)
+        return out
+
+    def extend(self, count: int | None = None) -> None:
+        """Simulate on until the rollout has ``count`` frames (None: all). The simulator is shared: extend a
+        rollout only before the next one starts."""
+        for positions, ages in self.rest if count is None else islice(self.rest, max(count - len(self), 0)):
+            self.positions.append(positions)
+            self.ages.append(ages)
+        if count is None:
+            self.rest = None
+
+    def __len__(self) -> int:
+        return len(self.positions)
 
 
 class PlumeSimulator:
@@ -179,10 +202,17 @@ class PlumeSimulator:
         return sim
 
     def rollout(self, params: PlumeParams) -> Rollout:
-        """Simulate ``setup.frames`` frames (one PBF step per frame; emission before each step inside the
-        emission window: paper_gas's disk layers, ambient_air's inlet)."""
+        """Simulate ``setup.frames`` frames (:meth:`frames`)."""
+        return Rollout.start(self.frames(params))
+
+    def frames(self, params: PlumeParams) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """(positions [N, 3] m, ages [N] s) of the smoke at each of ``setup.frames`` frames in turn, each step
+        simulated only when its frame is asked for (one PBF step per frame; emission before each step inside
+        the emission window: paper_gas's disk layers, ambient_air's inlet). The simulator's particles are
+        shared: one sequence at a time."""
         if params.structure == "ambient_air":
-            return self._rollout_air(params)
+            yield from self._frames_air(params)
+            return
         s = self.setup
         sim = self._simulator(params.model(), s.capacity)
         particles = self._particles
@@ -194,7 +224,7 @@ class PlumeSimulator:
         per_step = min(max(params.layers, 0.0) / s.fps, 1.0)
         inflow = per_step * s.fps * s.spacing
         phase = 1.0
-        out = Rollout([particles.get("position").copy()], [particles.get("age").ravel().copy()])
+        yield particles.get("position").copy(), particles.get("age").ravel().copy()
         for t in range(1, s.frames):
             on = s.emits(t)
             phase += per_step if on else 0.0
@@ -207,32 +237,28 @@ class PlumeSimulator:
                 particles.add(position=pts, velocity=vel)
             step_particles(sim, particles)
             prune(particles, None, s.solver.h, s.lo, s.hi)
-            out.positions.append(particles.get("position").copy())
-            out.ages.append(particles.get("age").ravel().copy())
-        return out
+            yield particles.get("position").copy(), particles.get("age").ravel().copy()
 
-    def _rollout_air(self, params: PlumeParams) -> Rollout:
+    def _frames_air(self, params: PlumeParams) -> Iterator[tuple[np.ndarray, np.ndarray]]:
         """The gas in ambient air: the seed as smoke in air at rest, the inlet (with the swirl) feeding it."""
         s, model = self.setup, params.model()
         domain = s.domain(model.air, self.obstacle)
         sim = self._simulator(model, domain.capacity(len(s.air_seed)))
         state = domain.initial(s.air_seed)
         omega = float(params.ext("swirl", "omega"))
-        out = Rollout([state.p[state.is_smoke].copy()], [state.age[state.is_smoke].copy()])
+        yield state.p[state.is_smoke].copy(), state.age[state.is_smoke].copy()
         for t in range(1, s.frames):
             state = domain.step(sim, state, omega, inflow=s.emits(t))
-            out.positions.append(state.p[state.is_smoke].copy())
-            out.ages.append(state.age[state.is_smoke].copy())
-        return out
+            yield state.p[state.is_smoke].copy(), state.age[state.is_smoke].copy()
 
 
-def render_rollout(rollout: Rollout, params: PlumeParams, cameras, sigma_px: float) -> np.ndarray:
-    """Images [V, T, h, w] of a rollout: each particle carries ``gain * exp(-rate * age)`` smoke."""
+def render_rollout(rollout: Rollout, params: PlumeParams, cameras, sigma_px: float, start: int = 0) -> np.ndarray:
+    """Images [V, T - start, h, w] of a rollout's frames from ``start`` on: each particle carries
+    ``gain * exp(-rate * age)`` smoke."""
     rate = float(params.ext("dissipation", "rate"))
-    T = len(rollout.positions)
-    out = np.zeros((len(cameras), T, cameras[0].height, cameras[0].width))
-    for t in range(T):
+    out = np.zeros((len(cameras), len(rollout) - start, cameras[0].height, cameras[0].width))
+    for t in range(start, len(rollout)):
         w = params.gain * np.exp(-rate * rollout.ages[t])
         for v, cam in enumerate(cameras):
-            out[v, t] = splat_points(cam, rollout.positions[t], w, sigma_px)
+            out[v, t - start] = splat_points(cam, rollout.positions[t], w, sigma_px)
     return out

@@ -53,37 +53,51 @@ class Fitter:
         self.evaluations = 0
         #: every model scored so far: (its structure, its extension names, image error per frame [T])
         self.scored: list[tuple[str, tuple[str, ...], np.ndarray]] = []
+        #: the lowest training error scored so far of each model: (structure, extension names) -> error
+        self.best: dict[tuple[str, tuple[str, ...]], float] = {}
 
     def sigma_for(self, params: PlumeParams) -> float:
         """The particle footprint [px] of the structure of ``params`` (it follows its lattice spacing)."""
         return self.sigma * (AIR_SPACING if params.structure == "ambient_air" else 1.0)
 
     def evaluate(self, params: PlumeParams, rollout: Rollout | None = None) -> Fit:
-        """Roll out (unless given), render, fit the gain on the training frames, score every frame."""
+        """Roll out (unless given), render, fit the gain on the training frames, score every frame.
+
+        A new rollout stops after the training frames unless its training error is within
+        :data:`SPREAD_TOLERANCE` of the lowest of its model (structure and extensions) so far: only such a fit can
+        be its search's best or count in the search spread (:func:`search_spread`), the only readers of the
+        validation frames. The frames it did not simulate score NaN.
+        """
         if rollout is None:
-            rollout = self.sim.rollout(params)
+            rollout = Rollout.start(self.sim.frames(params), int(self.train.max()) + 1)
             self.evaluations += 1
         unit = render_rollout(rollout, params.with_gain(1.0), self.cameras, self.sigma_for(params))
         o, s = self.observed[:, self.train], unit[:, self.train]
-        gain = float((o * s).sum() / max((s * s).sum(), 1e-12))
-        params = params.with_gain(gain)
-        images = unit * gain
+        params = params.with_gain(float((o * s).sum() / max((s * s).sum(), 1e-12)))
+        images = np.full(self.observed.shape, np.nan)
+        images[:, :len(rollout)] = unit * params.gain
         errors = image_error(self.observed, images)
+        model = (params.structure, tuple(params.extensions))
+        err = float(errors[self.train].mean())
+        best = self.best[model] = min(self.best.get(model, np.inf), err if np.isfinite(err) else np.inf)
+        if rollout.rest is not None and err <= (1 + SPREAD_TOLERANCE) * best:
+            done = len(rollout)
+            rollout.extend()
+            images[:, done:] = params.gain * render_rollout(rollout, params.with_gain(1.0), self.cameras,
+                                                            self.sigma_for(params), start=done)
+            errors = image_error(self.observed, images)
         self.scored.append((params.structure, tuple(params.extensions), errors))
         return Fit(params, rollout, images, errors)
 
     def train_error(self, fit: Fit) -> float:
         return float(fit.errors[self.train].mean())
 
-    def minimise(self, make, x0, steps, maxfev: int, rollout: Rollout | None = None) -> Fit:
-        """Nelder-Mead over x (``make(x) -> PlumeParams``) from x0 with initial simplex steps; the best fit.
-
-        With ``rollout`` given, the parameters change appearance only and the rollout is reused.
-        """
+    def minimise(self, make, x0, steps, maxfev: int) -> Fit:
+        """Nelder-Mead over x (``make(x) -> PlumeParams``) from x0 with initial simplex steps; the best fit."""
         best: list = [None]
 
         def loss(x):
-            fit = self.evaluate(make(x), rollout)
+            fit = self.evaluate(make(x))
             err = self.train_error(fit)
             if not np.isfinite(err):
                 return 1e9

@@ -1,11 +1,11 @@
 """The differentiable Position-Based-Fluids gas step (FluidNexus Eq. S1-S4; Macklin & Mueller 2013).
 
-One step, all in ``ti.ad``-differentiable kernels recorded on a small tape:
+One step, all in ``ti.ad``-differentiable kernels whose reverse goes on a small tape:
 
 1. external terms at (p, u): force f (forces.py), density rho(p) for the drag;
 2. prediction u_hat = u + dt f, x^0 = p + dt u_hat (Eq. S1 with alpha g inside f);
 3. ``iterations`` density-constraint projections, iteration k reading x^k and writing x^{k+1} (its own row
-   of an [iterations + 1, N] field so the tape can replay it);
+   of an [iterations + 1, N] field so the tape can replay it), one launch each;
 4. velocity u' = (x^K - p) / dt; p' = x^K.
 
 The two neighbour tables (at p for the external terms, at x^0 for the solver) are built outside the tape by
@@ -23,19 +23,14 @@ from .sph import ipow, poly6, poly6_coef, poly6_grad, spiky_coef, spiky_grad, sp
 
 
 @ti.kernel
-def accumulate_density(fast: ti.template(), n: int, h: float, w_coef: float, p: ti.template(), nbr: ti.template(),
-                       count: ti.template(), rho: ti.template()):
+def accumulate_density(n: int, h: float, w_coef: float, p: ti.template(), nbr: ti.template(), count: ti.template(),
+                       rho: ti.template()):
     # rho_i += sum_{j != i} W(p_i - p_j)   (FluidNexus Eq. 2 density; the self term is pre-filled)
     for i in range(n):
         acc = 0.0
         for k in range(count[i]):
-            w = poly6((p[i] - p[nbr[i, k]]).norm_sqr(), h, w_coef)
-            if ti.static(fast):
-                acc += w
-            else:
-                rho[i] += w
-        if ti.static(fast):
-            rho[i] += acc
+            acc += poly6((p[i] - p[nbr[i, k]]).norm_sqr(), h, w_coef)
+        rho[i] += acc
 
 
 @ti.kernel
@@ -45,44 +40,58 @@ def predict(n: int, dt: float, p: ti.template(), u: ti.template(), force: ti.tem
         x[0, i] = p[i] + dt * (u[i] + dt * force[i])
 
 
-@ti.kernel
-def accumulate_constraint(fast: ti.template(), n: int, it: int, h: float, w_coef: float, g_coef: float,
-                          x: ti.template(), nbr: ti.template(), count: ti.template(), rho: ti.template(),
-                          gsum: ti.template(), gsq: ti.template()):
-    # rho_i, sum_j grad_i W_ij and sum_j |grad_i W_ij|^2 over the neighbours (Macklin & Mueller 2013, Eq. 8-9)
-    for i in range(n):
-        acc_w, acc_g, acc_q = 0.0, ti.Vector([0.0, 0.0, 0.0]), 0.0
-        for k in range(count[i]):
-            r = x[it, i] - x[it, nbr[i, k]]
-            w = poly6(r.norm_sqr(), h, w_coef)
-            g = spiky_grad(r, h, g_coef)
-            if ti.static(fast):
-                acc_w += w
-                acc_g += g
-                acc_q += g.norm_sqr()
-            else:
-                rho[it, i] += w
-                gsum[it, i] += g
-                gsq[it, i] += g.norm_sqr()
-        if ti.static(fast):
-            rho[it, i] += acc_w
-            gsum[it, i] += acc_g
-            gsq[it, i] += acc_q
+@ti.func
+def _lambda(i, it, w0, rho0, eps, rho, gsum, gsq, lam):
+    # lambda_i = -C_i / (sum_k |grad_k C_i|^2 + eps), C_i = rho_i / rho0 - 1 (two-sided; Macklin Eq. 11)
+    c = (rho[it, i] + w0) / rho0 - 1.0
+    lam[it, i] = -c / ((gsum[it, i].norm_sqr() + gsq[it, i]) / (rho0 * rho0) + eps)
 
 
 @ti.kernel
 def compute_lambda(n: int, it: int, w0: float, rho0: float, eps: float, rho: ti.template(), gsum: ti.template(),
                    gsq: ti.template(), lam: ti.template()):
-    # lambda_i = -C_i / (sum_k |grad_k C_i|^2 + eps), C_i = rho_i / rho0 - 1 (two-sided; Macklin Eq. 11)
     for i in range(n):
-        c = (rho[it, i] + w0) / rho0 - 1.0
-        lam[it, i] = -c / ((gsum[it, i].norm_sqr() + gsq[it, i]) / (rho0 * rho0) + eps)
+        _lambda(i, it, w0, rho0, eps, rho, gsum, gsq, lam)
+
+
+@ti.func
+def _apply(i, it, averaging: ti.template(), count, dp, x):
+    # x^{k+1} = x^k + dp (divided by the neighbour count with constraint averaging)
+    if ti.static(averaging):
+        x[it + 1, i] = x[it, i] + dp[it, i] / ti.max(1.0, ti.cast(count[i], float))
+    else:
+        x[it + 1, i] = x[it, i] + dp[it, i]
 
 
 @ti.kernel
-def accumulate_delta(fast: ti.template(), n: int, it: int, h: float, w_coef: float, g_coef: float, rho0: float,
-                     scorr_k: float, scorr_n: ti.template(), w_dq: float, x: ti.template(), nbr: ti.template(),
-                     count: ti.template(), lam: ti.template(), dp: ti.template()):
+def apply_delta(n: int, it: int, averaging: ti.template(), count: ti.template(), dp: ti.template(),
+                x: ti.template()):
+    for i in range(n):
+        _apply(i, it, averaging, count, dp, x)
+
+
+@ti.kernel
+def project_constraint(n: int, it: int, h: float, w_coef: float, g_coef: float, w0: float, rho0: float, eps: float,
+                       scorr_k: float, scorr_n: ti.template(), w_dq: float, averaging: ti.template(),
+                       x: ti.template(), nbr: ti.template(), count: ti.template(), rho: ti.template(),
+                       gsum: ti.template(), gsq: ti.template(), lam: ti.template(), dp: ti.template()):
+    """One density-constraint projection x^it -> x^{it+1}, as four loops in one launch (launches cost more than
+    these loops at a few thousand particles). Its reverse pass is four kernels: ``constraint_adjoint``,
+    ``compute_lambda.grad``, ``delta_adjoint`` and ``apply_delta.grad``."""
+    # rho_i, sum_j grad_i W_ij and sum_j |grad_i W_ij|^2 over the neighbours (Macklin & Mueller 2013, Eq. 8-9)
+    for i in range(n):
+        acc_w, acc_g, acc_q = 0.0, ti.Vector([0.0, 0.0, 0.0]), 0.0
+        for k in range(count[i]):
+            r = x[it, i] - x[it, nbr[i, k]]
+            g = spiky_grad(r, h, g_coef)
+            acc_w += poly6(r.norm_sqr(), h, w_coef)
+            acc_g += g
+            acc_q += g.norm_sqr()
+        rho[it, i] = acc_w
+        gsum[it, i] = acc_g
+        gsq[it, i] = acc_q
+    for i in range(n):
+        _lambda(i, it, w0, rho0, eps, rho, gsum, gsq, lam)
     # dp_i = (1/rho0) sum_j (lambda_i + lambda_j + s_corr) grad W_ij, s_corr = -K (W/W(dq))^n (Macklin Eq. 12-14)
     for i in range(n):
         acc = ti.Vector([0.0, 0.0, 0.0])
@@ -90,19 +99,17 @@ def accumulate_delta(fast: ti.template(), n: int, it: int, h: float, w_coef: flo
             j = nbr[i, k]
             r = x[it, i] - x[it, j]
             s = -scorr_k * ipow(poly6(r.norm_sqr(), h, w_coef) / w_dq, scorr_n)
-            d = (lam[it, i] + lam[it, j] + s) / rho0 * spiky_grad(r, h, g_coef)
-            if ti.static(fast):
-                acc += d
-            else:
-                dp[it, i] += d
-        if ti.static(fast):
-            dp[it, i] += acc
+            acc += (lam[it, i] + lam[it, j] + s) / rho0 * spiky_grad(r, h, g_coef)
+        dp[it, i] = acc
+    for i in range(n):
+        _apply(i, it, averaging, count, dp, x)
 
 
-# Hand-written adjoints of the three neighbour-loop kernels above (the automatic ones scatter with atomics and
-# are about 10x slower). They use that the self table is symmetric (j in N(i) iff i in N(j)), so every
-# particle gathers the adjoint of both pair orders (i, j) and (j, i) without atomics. Checked against torch
-# autograd and finite differences (tests/engine/test_pbf_step.py).
+# Hand-written adjoints of the three neighbour loops above (the density and the projection's first and third
+# loops; automatic ones would need per-pair forms that scatter with atomics, about 10x slower). They use that the
+# self table is symmetric (j in N(i) iff i in N(j)), so every particle gathers the adjoint of both pair orders
+# (i, j) and (j, i) without atomics. Checked against torch autograd and finite differences
+# (tests/engine/test_pbf_step.py).
 @ti.kernel
 def density_adjoint(n: int, h: float, w_coef: float, p: ti.template(), nbr: ti.template(), count: ti.template(),
                     rho: ti.template()):
@@ -183,7 +190,8 @@ def update_velocity(n: int, last: int, dt: float, p: ti.template(), x: ti.templa
         u_out[i] = (x[last, i] - p[i]) / dt
 
 
-# Neighbour-loop kernels take ``fast`` (compile time). fast=True sums into locals and writes once per particle:
+# The force terms' neighbour-loop kernels (forces.py) take ``fast`` (compile time). fast=True sums into locals and
+# writes once per particle:
 # the forward pass, about 2x faster than per-pair atomic adds. fast=False accumulates every pair straight into
 # the global field, the only form whose ti.ad adjoint is correct (a local carried across a dynamic loop breaks
 # it); the tape runs ``kernel.grad`` of that form. Both compute the same sums (tests compare both to torch).
@@ -232,7 +240,6 @@ class PBFSimulator:
         self.gsum, self.dp = vec(its, cap), vec(its, cap)
         self.pre_table = NeighborTable(cap, width=width)
         self.solve_table = NeighborTable(cap, width=width)
-        self._accumulators = [self.force, self.rho, self.gsq, self.gsum, self.dp]
         self._grad_fields = [self.p, self.u, self.u_out, self.force, self.rho_pre, self.x, self.rho, self.gsq,
                              self.lam, self.gsum, self.dp]
         self._workspaces: dict = {}
@@ -285,40 +292,43 @@ class PBFSimulator:
         self.n = p.shape[0]
         tensors.load(self.p, p)
         tensors.load(self.u, u)
-        self.age.fill(0)
-        if age is not None:
+        if age is None:
+            self.age.fill(0)
+        else:
             tensors.load(self.age, tensors.as_tensor(age).reshape(-1, 1))
-        self.smoke.fill(1)
-        if smoke is not None:
+        if smoke is None:
+            self.smoke.fill(1)
+        else:
             tensors.load(self.smoke, tensors.as_tensor(smoke).reshape(-1, 1))
         self.token = None
 
     # ------------------------------------------------------------------ step
     def _record(self, kernel, *args, adjoint=None) -> None:
-        """Launch a differentiated kernel and put it on the tape (a first argument FAST selects the forms).
+        """Launch a differentiated kernel and put its reverse on the tape (a first argument FAST selects the
+        forms).
 
-        ``adjoint``: a hand-written reverse kernel taking the same arguments (without FAST), run instead of
-        ``kernel.grad``.
+        ``adjoint``: a hand-written reverse kernel taking the same arguments, run instead of ``kernel.grad``.
         """
         if args and args[0] is FAST:
             kernel(True, *args[1:])
             args = (False,) + args[1:]
         else:
             kernel(*args)
-        self._tape.append((kernel, args, adjoint))
+        self._tape.append((kernel.grad if adjoint is None else adjoint, args))
 
     def forward(self) -> None:
-        """Run one step on the loaded state, recording the differentiated kernels for :meth:`backward`."""
+        """Run one step on the loaded state, recording the reverse of its differentiated kernels for
+        :meth:`backward`."""
         s, n = self.solver, self.n
         h, wc, gc = s.h, poly6_coef(s.h), spiky_coef(s.h)
         w0 = wc * h**6
         self._tape = []
-        for f in self._accumulators + list(self._workspaces.values()):
+        for f in [self.force] + list(self._workspaces.values()):
             f.fill(0)
         self.rho_pre.fill(w0)
         if any(t.needs_neighbors for t in self.model.terms):
             self.pre_table.build(self.p, n, h)
-            self._record(accumulate_density, FAST, n, h, wc, self.p, self.pre_table.nbr, self.pre_table.count,
+            self._record(accumulate_density, n, h, wc, self.p, self.pre_table.nbr, self.pre_table.count,
                          self.rho_pre, adjoint=density_adjoint)
         for term, off in zip(self.model.terms, self._offsets):
             ctx = _Context(fast=FAST, n=n, dt=s.dt, h=h, w_coef=wc, g_coef=gc, rho0=s.rest_density, p=self.p, u=self.u,
@@ -333,13 +343,16 @@ class PBFSimulator:
             self.solve_table.build(self.x, n, h, src_row=0)
         nbr, cnt = self.solve_table.nbr, self.solve_table.count
         w_dq = wc * (h * h - (s.scorr_dq * h) ** 2) ** 3
+        rho0, avg = s.rest_density, bool(s.averaging)
         for it in range(s.iterations):
-            self._record(accumulate_constraint, FAST, n, it, h, wc, gc, self.x, nbr, cnt, self.rho, self.gsum,
-                         self.gsq, adjoint=constraint_adjoint)
-            self._record(compute_lambda, n, it, w0, s.rest_density, s.eps, self.rho, self.gsum, self.gsq, self.lam)
-            self._record(accumulate_delta, FAST, n, it, h, wc, gc, s.rest_density, s.scorr_k, s.scorr_n, w_dq, self.x,
-                         nbr, cnt, self.lam, self.dp, adjoint=delta_adjoint)
-            self._record(apply_delta, n, it, bool(s.averaging), cnt, self.dp, self.x)
+            project_constraint(n, it, h, wc, gc, w0, rho0, s.eps, s.scorr_k, s.scorr_n, w_dq, avg, self.x, nbr, cnt,
+                               self.rho, self.gsum, self.gsq, self.lam, self.dp)
+            self._tape += [
+                (constraint_adjoint, (n, it, h, wc, gc, self.x, nbr, cnt, self.rho, self.gsum, self.gsq)),
+                (compute_lambda.grad, (n, it, w0, rho0, s.eps, self.rho, self.gsum, self.gsq, self.lam)),
+                (delta_adjoint, (n, it, h, wc, gc, rho0, s.scorr_k, s.scorr_n, w_dq, self.x, nbr, cnt, self.lam,
+                                 self.dp)),
+                (apply_delta.grad, (n, it, avg, cnt, self.dp, self.x))]
             if self.obstacle is not None:  # one-way rigid coupling after each constraint iteration
                 self.obstacle.project(self.x, it + 1, n)
         self._record(update_velocity, n, s.iterations, s.dt, self.p, self.x, self.u_out)
@@ -367,11 +380,8 @@ class PBFSimulator:
         zeros = torch.zeros((self.n, 3), dtype=tensors.torch_dtype())
         tensors.load(self.x.grad, zeros if grad_p is None else grad_p, row=self.solver.iterations)
         tensors.load(self.u_out.grad, zeros if grad_u is None else grad_u)
-        for kernel, args, adjoint in reversed(self._tape):
-            if adjoint is None:
-                kernel.grad(*args)
-            else:
-                adjoint(*args[1:])
+        for reverse, args in reversed(self._tape):
+            reverse(*args)
         n_theta = len(self.model.param_names())
         return (tensors.store(self.p.grad, self.n), tensors.store(self.u.grad, self.n),
                 tensors.store(self.theta.grad, n_theta).reshape(-1))

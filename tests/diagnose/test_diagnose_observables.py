@@ -6,8 +6,8 @@ import pytest
 
 from fluidnexus.camera import Camera
 from fluidnexus.diagnose.observe import observables, splat_points, triangulate
-from fluidnexus.diagnose.plume import PlumeParams
-from fluidnexus.diagnose.search import Fit, Fitter, judge, search_spread
+from fluidnexus.diagnose.plume import PlumeParams, Rollout, render_rollout
+from fluidnexus.diagnose.search import SPREAD_TOLERANCE, Fit, Fitter, judge, search_spread
 
 
 def cameras():
@@ -61,6 +61,53 @@ def test_search_spread_counts_base_fits_the_training_frames_cannot_tell_apart():
     assert count == 2 and drop == pytest.approx(0.2)
     # a control better on training than every scored base fit: nothing to compare, no spread
     assert search_spread(fitter, Fit(PlumeParams(), None, None, errors(0.05, 0.5)), validate) == (0, 0.0)
+
+
+class LineOfPoints:
+    """A stand-in plume simulator: a column of points that rises 1 cm per frame from a height set by alpha; it
+    counts the frames it simulated."""
+
+    def __init__(self, count: int):
+        self.count, self.simulated = count, 0
+
+    def frames(self, params):
+        base = np.array([0.3, 0.1 - params.alpha, -0.2]) + np.linspace(0, 0.1, 20)[:, None] * [0.0, 1.0, 0.0]
+        for t in range(self.count):
+            self.simulated += 1
+            yield base + [0.0, 0.01 * t, 0.0], np.full(20, t / 30.0)
+
+
+def test_a_rollout_stops_after_the_training_frames_unless_it_is_near_the_best_of_its_model():
+    """Only a fit within SPREAD_TOLERANCE of its model's lowest training error so far can be a search's best or
+    count in the search spread: every other one stops after the training frames (its validation frames score NaN).
+    A fit that goes on scores exactly as a full rollout."""
+    cams, T, train = cameras(), 8, np.arange(5)
+    truth = Rollout.start(LineOfPoints(T).frames(PlumeParams(alpha=0.0)))
+    observed = render_rollout(truth, PlumeParams(gain=2.0), cams, 1.0)
+    sim = LineOfPoints(T)
+    fitter = Fitter(sim, observed, cams, 1.0, train)
+    first = fitter.evaluate(PlumeParams(alpha=0.02))
+    assert sim.simulated == T and np.isfinite(first.errors).all()  # the first is the best so far: all frames
+    assert len(first.rollout) == T and first.rollout.rest is None
+    worse = fitter.evaluate(PlumeParams(alpha=0.06))
+    assert fitter.train_error(worse) > (1 + SPREAD_TOLERANCE) * fitter.train_error(first)
+    assert sim.simulated == T + len(train) and np.isnan(worse.errors[len(train):]).all()
+    better = fitter.evaluate(PlumeParams(alpha=0.01))
+    assert sim.simulated == 2 * T + len(train) and np.isfinite(better.errors).all()
+    near = fitter.evaluate(PlumeParams(alpha=0.0102))  # within the tolerance of the best: it may count in the spread
+    assert fitter.train_error(better) < fitter.train_error(near) <= (1 + SPREAD_TOLERANCE) * fitter.train_error(better)
+    assert sim.simulated == 3 * T + len(train) and np.isfinite(near.errors).all()
+    swirl = fitter.evaluate(PlumeParams(alpha=0.06, extensions={"swirl": {"omega": 1.0}}))  # a model of its own
+    assert sim.simulated == 4 * T + len(train) and np.isfinite(swirl.errors).all()
+    # a stopped fit scores its training frames exactly as the same fit rolled out in full
+    alone = Fitter(LineOfPoints(T), observed, cams, 1.0, train)
+    alone.best[("paper_gas", ())] = 0.0  # as if a perfect fit came first
+    stopped = alone.evaluate(first.params)
+    assert alone.sim.simulated == len(train) and stopped.rollout.rest is not None
+    np.testing.assert_array_equal(stopped.errors[train], first.errors[train])
+    assert fitter.evaluations == 5
+    np.testing.assert_array_equal(fitter.evaluate(first.params, first.rollout).errors, first.errors)
+    assert fitter.evaluations == 5 and sim.simulated == 4 * T + len(train)  # a given rollout is not simulated again
 
 
 def test_gains_within_the_search_spread_are_named_with_the_footage_that_would_tell():
