@@ -191,12 +191,11 @@ def update_velocity(n: int, last: int, dt: float, p: ti.template(), x: ti.templa
 
 
 # The force terms' neighbour-loop kernels (forces.py) take ``fast`` (compile time). fast=True sums into locals and
-# writes once per particle:
-# the forward pass, about 2x faster than per-pair atomic adds. fast=False accumulates every pair straight into
-# the global field, the only form whose ti.ad adjoint is correct (a local carried across a dynamic loop breaks
-# it); the tape runs ``kernel.grad`` of that form. Both compute the same sums (tests compare both to torch).
-# They read x[i] inside the inner loop on purpose: a local hoisted out of a dynamic inner loop gets wrong
-# adjoints in Taichi 1.7.4 (checked against finite differences).
+# writes once per particle: the forward pass, about 2x faster than per-pair atomic adds. fast=False accumulates
+# every pair straight into the global field, the only form whose ti.ad adjoint is correct (a local carried across
+# a dynamic loop breaks it); the tape runs ``kernel.grad`` of that form. Both compute the same sums (tests compare
+# both to torch). They read p[i] inside the inner loop on purpose: a local hoisted out of a dynamic inner loop gets
+# wrong adjoints in Taichi 1.7.4 (checked against finite differences).
 FAST = "fast"  # marks the first tape argument of a neighbour-loop kernel
 
 
