@@ -256,7 +256,8 @@ def test_nearest_plain_plume_in_a_burst(template, tmp_path):
                    "Not the training window either (2026-11-25): over all 90 frames the air model fits best with that "
                    "inlet and tau 1.6-3.2 s (image error 0.089), the generator's inlet and tau give 0.099. With the "
                    "generator's inlet declared tau is 0.73 s, but the same burst without decay then names decay too "
-                   "(tau 3.2 s, 25.7 %): the air model's puff does not slow like the grid solver's")
+                   "(tau 3.2 s, 25.7 %); with the inlet refitted in the decay candidate the decay stays off (10 "
+                   "evaluations) or tau 5.8 s (20): the air model's puff does not slow like the grid solver's")
 def test_diagnose_finds_buoyancy_decay_in_a_burst(template, tmp_path):
     """Hidden buoyancy decay (the decay test's draw, tau 0.93 s) in a burst whose scene declares its emission
     window: diagnose's plumes emit in it too (diagnose_density checks report.json's ``emission``), and it names
