@@ -169,6 +169,8 @@ class Rollout:
     def extend(self, count: int | None = None) -> None:
         """Simulate on until the rollout has ``count`` frames (None: all). The simulator is shared: extend a
         rollout only before the next one starts."""
+        if self.rest is None:
+            return
         for positions, ages in self.rest if count is None else islice(self.rest, max(count - len(self), 0)):
             self.positions.append(positions)
             self.ages.append(ages)
