@@ -63,10 +63,10 @@ class Fitter:
     def evaluate(self, params: PlumeParams, rollout: Rollout | None = None) -> Fit:
         """Roll out (unless given), render, fit the gain on the training frames, score every frame.
 
-        A new rollout stops after the training frames unless its training error is within
-        :data:`SPREAD_TOLERANCE` of the lowest of its model (structure and extensions) so far: only such a fit can
-        be its search's best or count in the search spread (:func:`search_spread`), the only readers of the
-        validation frames. The frames it did not simulate score NaN.
+        A new rollout stops after the training frames unless its training error is the lowest of its model
+        (structure and extensions) so far, or for a base model (no extension) within :data:`SPREAD_TOLERANCE` of
+        it: only such a fit can be its search's best or count in the search spread (:func:`search_spread`), the
+        only readers of the validation frames. The frames it did not simulate score NaN.
         """
         if rollout is None:
             rollout = Rollout.start(self.sim.frames(params), int(self.train.max()) + 1)
@@ -80,7 +80,7 @@ class Fitter:
         model = (params.structure, tuple(params.extensions))
         err = float(errors[self.train].mean())
         best = self.best[model] = min(self.best.get(model, np.inf), err if np.isfinite(err) else np.inf)
-        if rollout.rest is not None and err <= (1 + SPREAD_TOLERANCE) * best:
+        if rollout.rest is not None and err <= (1 + (0.0 if params.extensions else SPREAD_TOLERANCE)) * best:
             done = len(rollout)
             rollout.extend()
             images[:, done:] = params.gain * render_rollout(rollout, params.with_gain(1.0), self.cameras,

@@ -78,9 +78,9 @@ class LineOfPoints:
 
 
 def test_a_rollout_stops_after_the_training_frames_unless_it_is_near_the_best_of_its_model():
-    """Only a fit within SPREAD_TOLERANCE of its model's lowest training error so far can be a search's best or
-    count in the search spread: every other one stops after the training frames (its validation frames score NaN).
-    A fit that goes on scores exactly as a full rollout."""
+    """Only a fit with its model's lowest training error so far can be its search's best, and only a base fit (no
+    extension) within SPREAD_TOLERANCE of it can count in the search spread: every other one stops after the
+    training frames (its validation frames score NaN). A fit that goes on scores exactly as a full rollout."""
     cams, T, train = cameras(), 8, np.arange(5)
     truth = Rollout.start(LineOfPoints(T).frames(PlumeParams(alpha=0.0)))
     observed = render_rollout(truth, PlumeParams(gain=2.0), cams, 1.0)
@@ -97,17 +97,21 @@ def test_a_rollout_stops_after_the_training_frames_unless_it_is_near_the_best_of
     near = fitter.evaluate(PlumeParams(alpha=0.0102))  # within the tolerance of the best: it may count in the spread
     assert fitter.train_error(better) < fitter.train_error(near) <= (1 + SPREAD_TOLERANCE) * fitter.train_error(better)
     assert sim.simulated == 3 * T + len(train) and np.isfinite(near.errors).all()
-    swirl = fitter.evaluate(PlumeParams(alpha=0.06, extensions={"swirl": {"omega": 1.0}}))  # a model of its own
-    assert sim.simulated == 4 * T + len(train) and np.isfinite(swirl.errors).all()
+    swirl = {"swirl": {"omega": 1.0}}
+    first_swirl = fitter.evaluate(PlumeParams(alpha=0.01, extensions=swirl))  # a model of its own: its best so far
+    assert sim.simulated == 4 * T + len(train) and np.isfinite(first_swirl.errors).all()
+    near_swirl = fitter.evaluate(PlumeParams(alpha=0.0102, extensions=swirl))  # within the tolerance, not the best
+    assert fitter.train_error(first_swirl) < fitter.train_error(near_swirl)
+    assert sim.simulated == 4 * T + 2 * len(train) and np.isnan(near_swirl.errors[len(train):]).all()
     # a stopped fit scores its training frames exactly as the same fit rolled out in full
     alone = Fitter(LineOfPoints(T), observed, cams, 1.0, train)
     alone.best[("paper_gas", ())] = 0.0  # as if a perfect fit came first
     stopped = alone.evaluate(first.params)
     assert alone.sim.simulated == len(train) and stopped.rollout.rest is not None
     np.testing.assert_array_equal(stopped.errors[train], first.errors[train])
-    assert fitter.evaluations == 5
+    assert fitter.evaluations == 6
     np.testing.assert_array_equal(fitter.evaluate(first.params, first.rollout).errors, first.errors)
-    assert fitter.evaluations == 5 and sim.simulated == 4 * T + len(train)  # a given rollout is not simulated again
+    assert fitter.evaluations == 6 and sim.simulated == 4 * T + 2 * len(train)  # a given rollout is not run again
 
 
 def test_gains_within_the_search_spread_are_named_with_the_footage_that_would_tell():
