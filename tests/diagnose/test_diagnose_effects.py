@@ -2,8 +2,8 @@
 
 Each test hides one effect (or two) at a magnitude drawn from a seeded range, runs diagnose on 48 frames (train
 0:32, validate 32:48; the burst 90 frames, 0:60 and 60:90) and requires the right name. Each diagnose fits both
-model structures, its fits side by side in as many processes as there are cores (``--jobs``, at most 6): 51-55 s
-each on the idle 2-core VM, the wind's (20 evaluations) 117 s (2026-11-25; 111-183 s in one process before its
+model structures, its fits side by side in as many processes as there are cores (``--jobs``, at most 6): 41-49 s
+each on the idle 2-core VM, the wind's (20 evaluations) 100 s (2026-11-25; 111-183 s in one process before its
 rollouts stopped after the training frames and the PBF step got faster). ``make test`` runs the fast tier the issue names
 (the plain plume, the paper's-gas control, wind, dissipation) and the visibility test; ``make test-slow`` runs the
 rest. Buoyancy decay, vorticity confinement, viscosity and swirl are ``xfail``: their data differ from a plain plume
