@@ -100,6 +100,8 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
     unknown = set(candidates) - set(EXTENSIONS)
     if unknown:
         raise InputError(None, "candidates", f"unknown extensions {sorted(unknown)}; known: {sorted(EXTENSIONS)}")
+    if len(set(candidates)) != len(candidates):
+        raise InputError(None, "candidates", f"each extension once, got {list(candidates)}")
     scene = load_scene(scene_dir)
     factor = scene_factor(scene)
     spacing = 0.02 * factor if spacing is None else spacing

@@ -144,10 +144,11 @@ def fit_candidate(fitter: Fitter, base: Fit, name: str, maxfev: int, drift_veloc
     """
     b = base.params
 
-    def with_ext(log_alpha, values):  # buoyancy searched as log(-alpha)
-        return replace(b, alpha=-float(np.exp(log_alpha)), extensions={name: values} if name else {})
-
     la = float(np.log(-b.alpha))
+
+    def with_ext(log_alpha, values):  # buoyancy searched as log(-alpha); the start is the base's alpha exactly
+        alpha = b.alpha if log_alpha == la else -float(np.exp(log_alpha))  # (exp(log(a)) can miss a by an ulp)
+        return replace(b, alpha=alpha, extensions={name: values} if name else {})
 
     if name is None:  # the control: the same refit with no extension
         return fitter.minimise(lambda x: with_ext(x[0], {}), [la], [0.3], maxfev)

@@ -6,8 +6,9 @@ kernel of a step (taichi-notes: walking grid cells inside a differentiated kerne
 Cells are integer coordinates ``floor(x / h)`` hashed into ``n_buckets`` buckets, so any distribution works
 with memory bounded by the capacity. A bucket can hold several cells (hash collisions); each query scans each
 distinct bucket of its 27 cells once and accepts candidates by distance, so no pair is missed or counted twice.
-The table has a width (neighbours per query); when a query has more neighbours than the width, the table is
-reallocated wider and refilled, up to ``max_width``, beyond which :class:`NeighborOverflow` is raised.
+The table has a width (neighbours per query, plus one spare slot the branch-free fill writes into); when a query
+has as many neighbours as the width or more, the table is reallocated wider and refilled, up to ``max_width``,
+beyond which :class:`NeighborOverflow` is raised.
 Nothing is ever dropped silently.
 """
 import taichi as ti
@@ -180,7 +181,8 @@ class NeighborTable:
         source_capacity: most source points.
         query_capacity: most query points (defaults to ``source_capacity``).
         width: initial table width (neighbours per query).
-        max_width: the table never grows beyond this; more neighbours raise :class:`NeighborOverflow`.
+        max_width: the table never grows beyond this; ``max_width`` neighbours or more raise
+            :class:`NeighborOverflow`.
     """
 
     def __init__(self, source_capacity: int, query_capacity: int | None = None, width: int = 48,
@@ -235,12 +237,12 @@ class NeighborTable:
             _fill_table(query, query_row, n_query, 1.0 / h, h * h, int(exclude_self), self.sorted_pos,
                         self.bucket_start, self.order, mask, self.nbr, self.count, self.max_count)
             needed = int(self.max_count[None])
-            if needed <= self.width:
+            if needed < self.width:  # the fill writes each candidate after the last neighbour: one slot to spare
                 break
-            if needed > self.max_width:
+            if needed >= self.max_width:
                 raise NeighborOverflow(f"a query point has {needed} neighbours within h={h} m; the table "
-                                       f"allows at most {self.max_width} (raise max_width or check the input)")
-            self._allocate(min(self.max_width, ((needed * 5 // 4) + 7) // 8 * 8))
+                                       f"allows at most {self.max_width - 1} (raise max_width or check the input)")
+            self._allocate(min(self.max_width, ((needed * 5 // 4) + 7) // 8 * 8))  # more than needed
         self.n_query = n_query
 
     def transpose(self, n_src: int) -> tuple[torch.Tensor, torch.Tensor]:

@@ -291,14 +291,14 @@ class PBFSimulator:
         self.n = p.shape[0]
         tensors.load(self.p, p)
         tensors.load(self.u, u)
-        if age is None:
-            self.age.fill(0)
-        else:
-            tensors.load(self.age, tensors.as_tensor(age).reshape(-1, 1))
-        if smoke is None:
-            self.smoke.fill(1)
-        else:
-            tensors.load(self.smoke, tensors.as_tensor(smoke).reshape(-1, 1))
+        for field, values, default in ((self.age, age, 0), (self.smoke, smoke, 1)):
+            if values is None:
+                field.fill(default)
+                continue
+            values = tensors.as_tensor(values).reshape(-1, 1)
+            if values.shape[0] != self.n:
+                raise ValueError(f"{values.shape[0]} ages or smoke weights for {self.n} particles")
+            tensors.load(field, values)
         self.token = None
 
     # ------------------------------------------------------------------ step
@@ -306,14 +306,18 @@ class PBFSimulator:
         """Launch a differentiated kernel and put its reverse on the tape (a first argument FAST selects the
         forms).
 
-        ``adjoint``: a hand-written reverse kernel taking the same arguments, run instead of ``kernel.grad``.
+        ``adjoint``: a hand-written reverse kernel taking the same arguments (without FAST), run instead of
+        ``kernel.grad``.
         """
-        if args and args[0] is FAST:
+        fast = bool(args) and args[0] is FAST
+        if fast:
             kernel(True, *args[1:])
-            args = (False,) + args[1:]
         else:
             kernel(*args)
-        self._tape.append((kernel.grad if adjoint is None else adjoint, args))
+        if adjoint is not None:
+            self._tape.append((adjoint, args[1:] if fast else args))
+        else:
+            self._tape.append((kernel.grad, (False,) + args[1:] if fast else args))
 
     def forward(self) -> None:
         """Run one step on the loaded state, recording the reverse of its differentiated kernels for

@@ -62,3 +62,17 @@ def test_table_overflow_fails_loudly(ti_engine):
     pts = np.random.default_rng(4).normal(0, 0.002, (200, 3))
     with pytest.raises(ti_engine.NeighborOverflow):
         _table_pairs(ti_engine, pts, 0.02, width=4, max_width=16)
+
+
+def test_a_query_with_exactly_width_neighbours_keeps_them_all(ti_engine):
+    """The fill writes every candidate after the last neighbour found: with as many neighbours as the width, the
+    last one would be overwritten by later candidates, so the table grows (one slot to spare)."""
+    h = 0.02
+    near = 0.5 * h * np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [-1, 0, 0]], float)
+    far = 1.5 * h * np.array([[0, -1, 0], [0, 0, -1], [1, 1, 0], [0, 1, 1], [1, 0, 1], [-1, -1, 0]], float) / np.sqrt(
+        np.array([1, 1, 2, 2, 2, 2]))[:, None]  # candidates in the 27 cells, none within h of the query
+    pts = np.concatenate([near, far]) + 0.1
+    q = np.full((1, 3), 0.1)
+    got, table = _table_pairs(ti_engine, pts, h, width=4, queries=q)
+    assert got == _kd_pairs(pts, h, q) and table.counts()[0] == 4
+    assert table.width > 4
