@@ -203,10 +203,6 @@ class PlumeSimulator:
             sim.load_theta(model.to_vector())
         return sim
 
-    def rollout(self, params: PlumeParams) -> Rollout:
-        """Simulate ``setup.frames`` frames (:meth:`frames`)."""
-        return Rollout.start(self.frames(params))
-
     def frames(self, params: PlumeParams) -> Iterator[tuple[np.ndarray, np.ndarray]]:
         """(positions [N, 3] m, ages [N] s) of the smoke at each of ``setup.frames`` frames in turn, each step
         simulated only when its frame is asked for (one PBF step per frame; emission before each step inside

@@ -71,7 +71,8 @@ class Fitter:
         if rollout is None:
             rollout = Rollout.start(self.sim.frames(params), int(self.train.max()) + 1)
             self.evaluations += 1
-        unit = render_rollout(rollout, params.with_gain(1.0), self.cameras, self.sigma_for(params))
+        unit_params, sigma = params.with_gain(1.0), self.sigma_for(params)
+        unit = render_rollout(rollout, unit_params, self.cameras, sigma)
         o, s = self.observed[:, self.train], unit[:, self.train]
         params = params.with_gain(float((o * s).sum() / max((s * s).sum(), 1e-12)))
         images = np.full(self.observed.shape, np.nan)
@@ -83,10 +84,9 @@ class Fitter:
         if rollout.rest is not None and err <= (1 + (0.0 if params.extensions else SPREAD_TOLERANCE)) * best:
             done = len(rollout)
             rollout.extend()
-            images[:, done:] = params.gain * render_rollout(rollout, params.with_gain(1.0), self.cameras,
-                                                            self.sigma_for(params), start=done)
+            images[:, done:] = params.gain * render_rollout(rollout, unit_params, self.cameras, sigma, start=done)
             errors = image_error(self.observed, images)
-        self.scored.append((params.structure, tuple(params.extensions), errors))
+        self.scored.append((*model, errors))
         return Fit(params, rollout, images, errors)
 
     def train_error(self, fit: Fit) -> float:

@@ -122,7 +122,7 @@ def test_plume_flows_around_the_scenes_obstacles(template, tmp_path, ti_engine):
         for obstacles in (Obstacles(str(scene_dir)), None):
             setup = PlumeSetup(grid.source, grid.source_radius, 0.02, grid.fps, 16, grid.lo, hi, np.zeros((0, 3)),
                                np.zeros((0, 3)), obstacles=obstacles)
-            paths.append(PlumeSimulator(setup).rollout(params).positions)
+            paths.append([p for p, _ in PlumeSimulator(setup).frames(params)])
         inside = [np.linalg.norm(p - ball["center"], axis=1) < 0.98 * ball["radius"] for p in paths[0]]
         assert not any(i.any() for i in inside), (params.structure, [int(i.sum()) for i in inside])
         free = [np.linalg.norm(p - ball["center"], axis=1) < 0.98 * ball["radius"] for p in paths[1]]
