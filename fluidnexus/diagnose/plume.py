@@ -105,8 +105,6 @@ class PlumeSetup:
         emitting: [frames] bool, whether the source emits in the step into each frame (the emission window,
             emission.py); None: in every step.
         obstacles: where the bodies the plume flows around come from (scenery.Obstacles), or None.
-        inflow: the source's speed [m/s] where the scene declares it (its ``source.speed`` above 0): ambient_air's
-            inlet speed, held in its fits; None: fitted.
     """
 
     source_center: tuple
@@ -121,7 +119,6 @@ class PlumeSetup:
     iterations: int = 4
     emitting: np.ndarray | None = None
     obstacles: Obstacles | None = None
-    inflow: float | None = None
 
     def emits(self, frame: int) -> bool:
         """Whether the source emits in the step into rollout frame ``frame``."""

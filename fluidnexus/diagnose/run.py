@@ -122,8 +122,7 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
              "end" if emission.stop is None else emission.stop, emission.source)
     setup = PlumeSetup(tuple(src[0]), float(src[1]), spacing, observed.fps, d - a, tuple(lo - 0.1 * factor),
                        tuple(hi + 0.1 * factor), seed, air_seed,
-                       emitting=np.array([emission.emits_at(a + t) for t in range(d - a)]), obstacles=obstacles,
-                       inflow=declared_inflow(scene))
+                       emitting=np.array([emission.emits_at(a + t) for t in range(d - a)]), obstacles=obstacles)
     sim = PlumeSimulator(setup, body)
     cams = observed.cameras
     # particle footprint: the source spacing seen from the mean camera distance
@@ -169,16 +168,6 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
     log.info("diagnose: finding %s (%d rollouts, %.0f s)", finding, fitter.evaluations,
              time.perf_counter() - started)
     return report
-
-
-def declared_inflow(scene) -> float | None:
-    """The source's speed [m/s] where the scene declares one above 0 (the inlet speed of the gas in ambient air),
-    else None (fitted)."""
-    if scene.source is None or scene.source.speed <= 0:
-        return None
-    log.info("diagnose: the source's speed %.3g m/s (from the scene) is the inlet speed of the gas in ambient air",
-             scene.source.speed)
-    return float(scene.source.speed)
 
 
 def _describe(params) -> str:

@@ -116,19 +116,11 @@ def fit_base(fitter: Fitter, maxfev: int, structure: str = "paper_gas") -> Fit:
     """Step 1: the base model of a structure, searched in log space, the gain in closed form.
 
     paper_gas: buoyancy alpha, drag k and the source rate (layers per second). ambient_air: buoyancy alpha, XSPH
-    c (at most 1) and the inlet speed, from the measured prototype's hand fit (alpha -0.15, c 0.4, 0.3 m/s); the
-    inlet speed is held where the scene declares it (``PlumeSetup.inflow``)."""
+    c (at most 1) and the inlet speed, from the measured prototype's hand fit (alpha -0.15, c 0.4, 0.3 m/s)."""
     if structure == "ambient_air":
-        declared = fitter.sim.setup.inflow
-
-        def air(x):
-            inflow = declared if declared is not None else float(np.exp(x[2]))
-            return PlumeParams(alpha=-float(np.exp(x[0])), c=float(min(np.exp(x[1]), 1.0)), inflow=inflow,
-                               structure="ambient_air")
-
-        x0, steps = [np.log(0.15), np.log(0.4), np.log(0.3)], [0.6, 0.5, 0.3]
-        free = 2 if declared is not None else 3
-        return fitter.minimise(air, x0[:free], steps[:free], maxfev)
+        return fitter.minimise(lambda x: PlumeParams(alpha=-float(np.exp(x[0])), c=float(min(np.exp(x[1]), 1.0)),
+                                                     inflow=float(np.exp(x[2])), structure="ambient_air"),
+                               [np.log(0.15), np.log(0.4), np.log(0.3)], [0.6, 0.5, 0.3], maxfev)
     return fitter.minimise(lambda x: PlumeParams(alpha=-float(np.exp(x[0])), k=float(np.exp(x[1])),
                                                  layers=float(np.exp(x[2]))),
                            [np.log(0.3), np.log(3.0), np.log(10.0)], [0.8, 0.6, 0.5], maxfev)

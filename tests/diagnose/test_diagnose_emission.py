@@ -87,35 +87,6 @@ def test_the_simulated_plume_emits_only_inside_the_window(ti_engine):
         assert np.all(counts[4:] == counts[3]), (params.structure, counts)
 
 
-def test_a_declared_speed_is_the_inlet_speed_of_the_air():
-    """A scene that declares its source's speed: the ambient-air base fit holds it as the inlet speed and searches
-    alpha and XSPH c only; without one (speed 0, the default) the inlet speed is searched too."""
-    from fluidnexus.diagnose.run import declared_inflow
-    from fluidnexus.diagnose.search import fit_base
-    from fluidnexus.scene import Source
-
-    class Recorder:  # a fitter that records what the search would roll out
-        def __init__(self, inflow):
-            self.sim = type("Sim", (), {"setup": type("Setup", (), {"inflow": inflow})()})()
-            self.made, self.free = [], None
-
-        def minimise(self, make, x0, steps, maxfev):
-            self.free = len(x0)
-            self.made = [make(np.asarray(x0) + d) for d in (0.0, 0.3, -0.2)]
-            return self.made[0]
-
-    held, searched = Recorder(0.25), Recorder(None)
-    fit_base(held, 4, "ambient_air")
-    fit_base(searched, 4, "ambient_air")
-    assert held.free == 2 and {p.inflow for p in held.made} == {0.25}
-    assert searched.free == 3 and len({p.inflow for p in searched.made}) == 3
-    scene = type("Scene", (), {})()
-    for source, expected in ((None, None), (Source((0.0, 0.0, 0.0), 0.05), None),
-                             (Source((0.0, 0.0, 0.0), 0.05, speed=0.3), 0.3)):
-        scene.source = source
-        assert declared_inflow(scene) == expected
-
-
 def test_report_says_when_the_source_starts_and_stops():
     from fluidnexus.diagnose.report import _emission_text
 
