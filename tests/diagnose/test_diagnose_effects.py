@@ -260,8 +260,8 @@ def test_nearest_plain_plume_in_a_burst(template, tmp_path):
                    "(tau 3.2 s, 25.7 %); with the inlet refitted in the decay candidate the decay stays off (10 "
                    "evaluations) or tau 5.8 s (20): the air model's puff does not slow like the grid solver's. "
                    "An air model whose smoke mixes and whose inlet's flux is exact (2026-11-26, not kept) fits the "
-                   "training frames without decay (0.040 against 0.148) and names none: the window 0:60 does not pin "
-                   "the decay (docs/diagnose.md, the eighth design)")
+                   "training frames without decay (0.040 against 0.148 with the old inlet) and names none: the "
+                   "window 0:60 does not pin the decay (docs/diagnose.md, the eighth design)")
 def test_diagnose_finds_buoyancy_decay_in_a_burst(template, tmp_path):
     """Hidden buoyancy decay (the decay test's draw, tau 0.93 s) in a burst whose scene declares its emission
     window: diagnose's plumes emit in it too (diagnose_density checks report.json's ``emission``), and it names
