@@ -20,9 +20,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from fluidnexus.background.plates import noise_level, quiet_mask, temporal_mode  # noqa: E402
-from fluidnexus.background.store import read_plate  # noqa: E402
 from fluidnexus.scene import load_scene  # noqa: E402
+from fluidnexus.scenery.plate_store import read_plate  # noqa: E402
+from fluidnexus.scenery.plates import noise_level, quiet_mask, temporal_mode  # noqa: E402
 from fluidnexus.video import read_video  # noqa: E402
 
 

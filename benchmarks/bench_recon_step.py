@@ -38,8 +38,9 @@ def main() -> None:
     args = ap.parse_args()
     engine.init(args.arch)
     from fluidnexus.engine.tensors import torch_dtype
+    from fluidnexus.metrics import image_loss
     from fluidnexus.predict.rollout import RunContext
-    from fluidnexus.recon.losses import density_loss, image_loss
+    from fluidnexus.recon.losses import density_loss
     from fluidnexus.recon.observations import load_observations
     from fluidnexus.recon.smoke import Smoke
     from fluidnexus.recon.workspace import Workspace

@@ -29,10 +29,11 @@ def main() -> None:
     args = parser.parse_args()
 
     from fluidnexus import engine
-    from fluidnexus.background.store import read_plate
     from fluidnexus.metrics import mean_psnr_db
     from fluidnexus.scene import load_ground_truth, load_scene
-    from fluidnexus.static import StaticConfig, find_obstacles, fit_static, refine_balls, render_static
+    from fluidnexus.scenery.found_obstacles import find_obstacles, refine_balls
+    from fluidnexus.scenery.plate_store import read_plate
+    from fluidnexus.scenery.static_layer import StaticConfig, fit_static, render_static
     from fluidnexus.video import read_video
 
     engine.init(arch="cpu", precision="f32")

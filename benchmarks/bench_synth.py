@@ -25,7 +25,7 @@ import numpy as np
 from click.testing import CliRunner
 
 from cli.main import main
-from cli.synth import read_footage
+from fluidnexus.video import read_footage
 from fluidnexus.gen.axisym import AxisymConfig, AxisymSynthesizer
 from fluidnexus.gen.synthesizer import SynthesisInput
 from fluidnexus.gen.temporal import temporal_filter

@@ -17,7 +17,7 @@ log = logging.getLogger("fluidnexus")
 
 def parse_plates(items: tuple[str, ...], scene, views) -> dict[str, tuple[Path, np.ndarray]]:
     """``--plate NAME=FILE``: each names an input view with footage once, and its image has that camera's size."""
-    from fluidnexus.background.store import read_plate_file
+    from fluidnexus.scenery.plate_store import read_plate_file
 
     by_name = {v.name: v for v in views}
     out = {}
@@ -58,10 +58,10 @@ def background(scene_dir: Path, plates: tuple[str, ...], color: str | None, reso
     fluidnexus background scene
     fluidnexus background scene --plate cam0=empty_wall.png --color 1,1,1
     """
-    from fluidnexus.background.estimate import estimate_view, given_plate, working_scale
-    from fluidnexus.background.sheet import contact_sheet
-    from fluidnexus.background.store import FOLDER, write_backgrounds
     from fluidnexus.progress import progress
+    from fluidnexus.scenery.plate_estimate import estimate_view, given_plate, working_scale
+    from fluidnexus.scenery.plate_sheet import contact_sheet
+    from fluidnexus.scenery.plate_store import FOLDER, write_backgrounds
 
     scene = load_scene(scene_dir)
     views = [v for v in scene.with_role("input") if v.video is not None]

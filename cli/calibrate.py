@@ -15,9 +15,9 @@ from fluidnexus.calibrate.colmap import media_by_stem, read_colmap
 from fluidnexus.calibrate.nerf import read_nerf
 from fluidnexus.calibrate.pinf import pinf_dict, read_pinf, source_at_volume_foot
 from fluidnexus.errors import InputError, require_positive
-from fluidnexus.obstacles import parse_option
 from fluidnexus.samples import sample_path
 from fluidnexus.scene import SCENE_FILE, Scene, View, load_ground_truth, load_scene
+from fluidnexus.scenery.obstacles import parse_option
 from fluidnexus.video import VIDEO_SUFFIXES, probe_video
 from fluidnexus.world_frame import SourceFrame
 
@@ -227,8 +227,8 @@ def _from_video(out: Path, opts) -> Scene:
     info = probe_video(video)
     plate = None
     if opts["plate"] is not None:  # checked before anything is written
-        from fluidnexus.background.estimate import given_plate
-        from fluidnexus.background.store import read_plate_file
+        from fluidnexus.scenery.plate_estimate import given_plate
+        from fluidnexus.scenery.plate_store import read_plate_file
 
         image = read_plate_file(opts["plate"], info.width, info.height, "--plate", f"the video {video}")
         plate = given_plate(opts["plate"], image, video, info.frame_count)
@@ -247,8 +247,8 @@ def _from_video(out: Path, opts) -> Scene:
     if plate is None:
         log.info("no --plate: 'fluidnexus background %s' estimates the clean plate from the footage", out)
         return scene
-    from fluidnexus.background.sheet import contact_sheet
-    from fluidnexus.background.store import write_backgrounds
+    from fluidnexus.scenery.plate_sheet import contact_sheet
+    from fluidnexus.scenery.plate_store import write_backgrounds
 
     estimate, middle = plate
     records = write_backgrounds(scene, {video.stem: estimate}, contact_sheet([(video.stem, middle, estimate)]))

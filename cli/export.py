@@ -65,7 +65,7 @@ def export(run_dir: Path, fmt: str, out: Path, voxel: float, frame_name: str, ar
     from fluidnexus.export.vti import write_vti
     from fluidnexus.progress import track
     from fluidnexus.runs import open_run
-    from fluidnexus.static import STATIC_FILE, load_static
+    from fluidnexus.scenery.static_layer import STATIC_FILE, load_static
 
     if not voxel > 0:
         raise InputError(None, "--voxel", f"must be > 0, got {voxel}")

@@ -47,11 +47,11 @@ def interact(run_dir: Path, wind, profile, wind_height, ball, mesh_file, from_fr
     """
     from fluidnexus.memory import parse_limit
     from fluidnexus.predict.rollout import parse_wind, with_wind
-    from fluidnexus.predict.obstacle import parse_ball
     from fluidnexus.predict.session import (Interaction, check_new_run, comparison_videos, physics_baseline,
                                             simulate_future)
     from fluidnexus.runs import open_run
     from fluidnexus.scene_scale import scene_factor
+    from fluidnexus.scenery.obstacles import make_obstacle, parse_sphere
 
     limit = parse_limit(max_memory)
     check_frames(frames)
@@ -62,7 +62,7 @@ def interact(run_dir: Path, wind, profile, wind_height, ball, mesh_file, from_fr
         raise InputError(None, "--ball/--mesh", "give one obstacle, not both")
     accel = parse_wind(wind) if wind is not None else None
     if ball is not None:
-        parse_ball(ball)
+        parse_sphere(ball, "--ball", "CX,CY,CZ,R in metres")
     if wind_height is not None and not wind_height > 0:
         raise InputError(None, "--wind-height", f"must be > 0, got {wind_height}")
     run = open_run(run_dir)
@@ -78,8 +78,6 @@ def interact(run_dir: Path, wind, profile, wind_height, ball, mesh_file, from_fr
         info["wind"] = {"accel": list(accel), "profile": profile, "height": height}
     obstacle = None
     if ball is not None or mesh_file is not None:
-        from fluidnexus.predict.obstacle import make_obstacle
-
         obstacle, info["obstacle"] = make_obstacle(ball, mesh_file)
     _, with_ = simulate_future(run, out, "interact", frames, Interaction(model, obstacle, info), refiner, from_frame,
                                ctx, notes, anchor, limit)

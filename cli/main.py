@@ -12,8 +12,8 @@ import click
 from fluidnexus import __version__
 from fluidnexus.errors import InputError, RunError
 
-from .batch import batch
 from .background import background
+from .batch import batch
 from .calibrate import calibrate
 from .demo import demo
 from .diagnose import diagnose

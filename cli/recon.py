@@ -8,7 +8,6 @@ from pathlib import Path
 import click
 
 from fluidnexus.atomic import read_json
-from fluidnexus.errors import InputError
 from fluidnexus.scene import load_scene
 from fluidnexus.video import parse_frame_range
 
@@ -29,17 +28,6 @@ def _settings_options(func):
         func = click.option(f"--{f.name.replace('_', '-')}", f.name, type=type(f.default), default=None,
                             help=f"default {f.default}{scaled}")(func)
     return func
-
-
-def resolve_resolution(text: str, scene) -> float:
-    """``auto`` = the long side becomes at most 480 px (0.25 for 1080x1920 captures, 1.0 for the sample)."""
-    if text == "auto":
-        cam = scene.views[0].camera
-        return min(1.0, 480.0 / max(cam.width, cam.height))
-    try:
-        return float(text)
-    except ValueError:
-        raise InputError(None, "--resolution", f"expected a number or 'auto', got {text!r}") from None
 
 
 def load_overrides(path: Path | None) -> dict:
@@ -69,7 +57,9 @@ def recon(scene_dir: Path, out: Path, frames_text, resolution, channels, config_
     """Reconstruct physical and visual particles of SCENE_DIR frame by frame (FluidNexus Alg. S1)."""
     from fluidnexus.memory import parse_limit
     from fluidnexus.recon.config import config_for_scene
-    from fluidnexus.recon.run import default_setup, reconstruct
+    from fluidnexus.recon.run import reconstruct
+    from fluidnexus.recon.setup import default_setup
+    from fluidnexus.working_resolution import working_scale
 
     limit = parse_limit(max_memory)
     scene = load_scene(scene_dir)
@@ -78,7 +68,7 @@ def recon(scene_dir: Path, out: Path, frames_text, resolution, channels, config_
     if frames_text is not None:
         rng = parse_frame_range(frames_text)
         values["frames"] = (rng.start or 0, rng.stop)
-    values["resolution"] = resolve_resolution(resolution, scene)
+    values["resolution"] = working_scale(resolution, scene)
     values["channels"] = 1 if channels == "gray" else 3
     cfg = config_for_scene(scene, values, config_file)  # lengths follow the scene's size unless given
     loaded = load_model_file(model_file, ambient_air=False)  # its physics only: recon emits as the scene says

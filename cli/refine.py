@@ -1,19 +1,14 @@
 """``fluidnexus refine``: make every ``novel`` video temporally coherent (paper Sec. 3.1, Eq. 2)."""
 from __future__ import annotations
 
-import logging
 from pathlib import Path
 
 import click
 
-from fluidnexus.errors import InputError
-from fluidnexus.scene import View, load_scene, save_views
-from fluidnexus.video import write_video
+from fluidnexus.scene import load_scene
 
 from .options import max_memory_option
-from .synth import read_footage, resized, resolution_option, stored_size
-
-log = logging.getLogger("fluidnexus")
+from .synth import resolution_option
 
 
 @click.command()
@@ -42,38 +37,18 @@ def refine(scene_dir: Path, method: str, weights: Path | None, lora: Path | None
     fluidnexus refine scene                      # temporal filter, runs anywhere
     fluidnexus refine scene --method cogvideox --weights ~/models/CogVideoX-5b --lora ~/models/lora --offload
     """
-    from fluidnexus.gen.refiner import make_refiner
-    from fluidnexus.memory import check, parse_limit, video_estimate
-
-    from .recon import resolve_resolution
+    from fluidnexus.gen.novel_views import refine_views
+    from fluidnexus.memory import parse_limit
+    from fluidnexus.working_resolution import working_scale
 
     limit = parse_limit(max_memory)
     scene = load_scene(scene_dir)
-    novel = [v for v in scene.with_role("novel") if v.video is not None]
-    if not novel:
-        raise InputError(scene.root / "scene.json", "views", "no novel view has a video yet; run synth first")
-    scale = resolve_resolution(resolution, scene)
-    working = novel[0].camera.scaled(scale)
-    size = (working.width, working.height)
-    check(video_estimate("refine", scene.frame_count, *size, 4), limit)
+    options = {}
     if method == "cogvideox":
         from fluidnexus.gen.cogvideox import DEFAULT_PROMPT, CogVideoXConfig
 
         config = CogVideoXConfig(strength=strength, steps=steps, prompt=prompt or DEFAULT_PROMPT,
                                  prompt_embeds=None if prompt_embeds is None else str(prompt_embeds), seed=seed,
                                  device=None if device == "auto" else device, offload=offload)
-        refiner = make_refiner(method, weights=weights, lora=lora, config=config)
-    else:
-        refiner = make_refiner(method)
-    done = {}
-    for view in novel:
-        provenance = dict(view.provenance or {})
-        unrefined = provenance.get("unrefined", view.video)  # re-running refine starts from the rough video
-        log.info("refine %s: %s", method, view.name)
-        rel = f"videos/{view.name}_refined.mp4"
-        refined = resized(refiner.refine(read_footage(scene.root / unrefined, size)), stored_size(view.camera, working))
-        write_video(scene.root / rel, refined, scene.fps)
-        provenance.update({"unrefined": unrefined, "refine": {**refiner.provenance(), "resolution": scale}})
-        done[view.name] = View(view.name, view.role, view.camera, rel, provenance)
-    save_views(scene.root, tuple(done.get(v.name, v) for v in scene.views))
-    log.info("refined %d novel videos", len(done))
+        options = {"weights": weights, "lora": lora, "config": config}
+    refine_views(scene, method, options, working_scale(resolution, scene), limit)

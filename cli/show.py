@@ -42,7 +42,8 @@ def _cameras(run, scene, which: str):
 
 def _backgrounds(choice: str, run):
     """(camera, view name or None) -> ``Behind`` for ``--background``; a FILE is read (and refused) at once."""
-    from fluidnexus.backdrop import Behind, black_backdrop, resize_image, run_backdrop, to_channels
+    from fluidnexus.images import resize_image, to_channels
+    from fluidnexus.scenery.backdrop import Behind, black_backdrop, run_backdrop
 
     if choice == "plates":
         backdrop = run_backdrop(run)
@@ -50,7 +51,7 @@ def _backgrounds(choice: str, run):
     if choice == "black":
         black = black_backdrop(run.channels)
         return lambda camera, view: black.behind(camera, view)
-    from fluidnexus.background.store import read_image
+    from fluidnexus.scenery.plate_store import read_image
 
     try:
         image = to_channels(read_image(choice), run.channels)
@@ -132,9 +133,9 @@ def render(run_dir: Path, out: Path, which: str, orbit: int, compare: bool, png:
 def evaluate(run_dir: Path, json_file: Path | None, lpips_weights: Path | None, background: str, arch: str) -> None:
     """Score a run against the scene's ground-truth videos: novel views, re-simulation, divergence."""
     from fluidnexus.atomic import write_json
-    from fluidnexus.backdrop import black_backdrop
     from fluidnexus.evaluation import evaluate as score
     from fluidnexus.runs import open_run
+    from fluidnexus.scenery.backdrop import black_backdrop
 
     run = open_run(run_dir)
     weights = None

@@ -20,9 +20,10 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from fluidnexus.scenery.backdrop import Backdrop, run_backdrop
+
 from . import engine
 from .engine.tensors import torch_dtype
-from .backdrop import Backdrop, run_backdrop
 from .errors import InputError
 from .frames import render_state
 from .metrics import psnr, ssim
@@ -64,8 +65,9 @@ def _score(rendered: list[np.ndarray], truth: np.ndarray, lpips_weights) -> Scor
 def resimulate(run: Run, frames: list[int]) -> list[FrameState]:
     """States whose visual positions come only from advecting the first frame through the saved velocities (and,
     as in the reconstruction, moved out of the scene's obstacles)."""
+    from fluidnexus.scenery.world import run_scenery
+
     from .engine.obstacle import PointProjector
-    from .recon.scenery import run_scenery
 
     first = run.state(frames[0])
     out = [first]
@@ -161,7 +163,7 @@ def prediction(run: Run, lpips_weights=None, backdrop: Backdrop | None = None) -
 
 def evaluate(run: Run, lpips_weights=None, backdrop: Backdrop | None = None) -> dict:
     """Score a run: the JSON document of ``fluidnexus eval`` (keys in docs/evaluation.md). The renders composite
-    the smoke over ``backdrop`` (default the run's own: ``fluidnexus.backdrop``)."""
+    the smoke over ``backdrop`` (default the run's own: ``scenery.backdrop``)."""
     scene = run.scene(check_videos=False)
     truths = load_ground_truth(scene.root)
     if not truths:

@@ -6,17 +6,18 @@ import math
 import numpy as np
 import torch
 
+from fluidnexus.scenery.backdrop import Behind
+
 from . import engine
-from .engine.tensors import torch_dtype
-from .backdrop import Behind
 from .camera import Camera
+from .engine.tensors import torch_dtype
 from .scene import Volume
 from .state import FrameState
 
 
 def render_state(state: FrameState, camera: Camera, behind: Behind | None = None, matte: bool = False):
     """The visual particles of ``state`` seen by ``camera``: float32 [H, W, C] in [0, 1], composited with
-    ``behind`` (``fluidnexus.backdrop``: a background and static Gaussians; black without it). With ``matte``,
+    ``behind`` (``scenery.backdrop``: a background and static Gaussians; black without it). With ``matte``,
     the smoke's own alpha [H, W, 1] instead (the static Gaussians and the background left out)."""
     dtype = torch_dtype()
     extra = {} if behind is None or matte else behind.render_args(dtype)

@@ -1,7 +1,9 @@
 """Memory before allocation: what a run will need, the limit it must stay under, and the refusal (docs/scale.md).
 
 Every command that allocates a lot (recon, predict, interact, diagnose, synth, refine) adds up its large
-buffers from the scene and its settings before it reads a video or writes a file, and compares the sum with
+buffers from the scene and its settings before it reads a video or writes a file (each stage owns its estimate:
+``recon/memory.py``, ``predict/memory.py``, ``diagnose/parallel.py``, ``gen/novel_views.py``; this module holds the
+arithmetic they share), and compares the sum with
 ``--max-memory`` (default ``DEFAULT_FRACTION`` of the memory the machine has available now, from
 ``/proc/meminfo``). Over the limit it raises :class:`~fluidnexus.errors.InputError` naming the setting that
 shrinks the largest part, so the CLI prints one line and exits with code 2 before anything is written.
@@ -132,65 +134,10 @@ def image_bytes(width: int, height: int, channels: int, views: int) -> int:
     return views * width * height * (2 * F32 * (channels + 2) + 24 * F32 * channels)
 
 
-# ---- per command ----------------------------------------------------------------------------------------
-def recon_estimate(scene, setup, frames: tuple[int, int], n_seeds: int) -> Estimate:
-    """A reconstruction's peak: frame cache, hull, particle capacities over the run, render buffers, plates.
-
-    ``n_seeds`` is the number of visual particles the first frame's hull seeds (0 before the hull is known).
-    """
-    from .recon.hull import CHUNK_POINTS, hull_grid
-    from .recon.run import capacities, scene_source
-
-    cfg = setup.config
-    views = scene.usable_views()
-    cam = views[0].camera.scaled(cfg.resolution) if views else None
-    est = Estimate("recon")
-    if cam is not None:
-        est.add("video cache", video_bytes(len(views), frames[1] - frames[0], cam.width, cam.height, cfg.channels),
-                "--frames or --resolution")
-        est.add("render buffers", image_bytes(cam.width, cam.height, cfg.channels, cfg.views_per_iter),
-                "--resolution")
-    if scene.backgrounds:  # plates held at the videos' size (and their run-size copies), static-layer Gaussians
-        full = [v.camera for v in views if v.name in scene.backgrounds]
-        est.add("plates", sum(c.width * c.height for c in full) * 4 * F32 + len(full) * 3 * image_bytes(
-                cam.width, cam.height, cfg.channels, 1), "--resolution")
-    if scene.volume is not None:
-        voxels = 1
-        for axis in hull_grid(scene.volume, cfg.visual_spacing):
-            voxels *= len(axis)
-        est.add("visual hull", hull_bytes(voxels, CHUNK_POINTS), "--visual-spacing")
-    physical, visual = capacities(frames[1] - frames[0], setup, scene_source(scene), n_seeds)
-    est.add("physical particles", physical_bytes(physical, setup.solver.iterations),
-            "--physical-spacing / --physical-emit-spacing or --frames")
-    est.add("visual particles", visual_bytes(visual, cfg.channels), "--visual-spacing or --frames")
-    return est
-
-
+# ---- shared by several commands ----------------------------------------------------------------------
 def video_estimate(command: str, frames: int, width: int, height: int, videos: int) -> Estimate:
     """A command that holds ``videos`` RGB float32 videos of ``frames`` x ``width`` x ``height`` at once
     (synth: the input, the output and the warp; refine: the rough video, its smoothed copy and the output)."""
     est = Estimate(command)
     est.add("videos", videos * frames * width * height * 3 * F32, "--resolution")
-    return est
-
-
-def future_estimate(command: str, start, frames: int, ctx, model, cameras, videos: bool) -> Estimate:
-    """predict / interact: the rollout's workspace (with the gas in ambient air, its air: the region the smoke
-    reaches, on the rest density's lattice), the ``frames`` states it keeps, and with ``videos`` the rough, known,
-    anchored and refined video of every camera (float32, at the run's resolution)."""
-    from .predict.rollout import capacities
-
-    phys, smoke, vis = capacities(start, frames, ctx, model)
-    channels = ctx.config.channels
-    est = Estimate(command)
-    if model.air is None:
-        est.add("physical particles", physical_bytes(phys, ctx.solver.iterations), "--frames")
-    else:
-        est.add("smoke and air particles", physical_bytes(phys, ctx.solver.iterations),
-                "--frames or the model's structure margin")
-    est.add("visual particles", visual_bytes(vis, channels), "--frames")
-    est.add("rollout states", frames * F32 * (7 * smoke + (11 + channels) * vis), "--frames")
-    if videos:
-        pixels = sum(cam.width * cam.height for cam in cameras)
-        est.add("videos", 4 * (frames + 1) * pixels * channels * F32, "--frames or --no-refit")
     return est

@@ -1,4 +1,5 @@
-"""Image metrics used across the project: PSNR, SSIM (numpy and differentiable torch) and video flicker.
+"""Image metrics used across the project: PSNR, SSIM (numpy and differentiable torch), video flicker and the
+photometric loss L1 + D-SSIM that recon and the static layer minimise.
 
 Images follow docs/conventions.md: ``[..., H, W, C]`` floats in [0, 1]. Every function accepts a numpy array
 or a torch tensor and answers in the same kind; torch inputs stay on their device and dtype, and the torch
@@ -10,7 +11,12 @@ padding), channels scored separately and averaged.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    import torch
 
 WINDOW = 11
 SIGMA = 1.5
@@ -153,3 +159,10 @@ def mean_ssim(pred: np.ndarray, truth: np.ndarray) -> float:
     """Mean over frames of the per-frame SSIM of two [T, H, W, C] videos."""
     return float(np.mean([ssim(p, t) for p, t in zip(pred, truth)]))
 
+
+def image_loss(pred: torch.Tensor, target: torch.Tensor, w_l1: float = 0.8, w_dssim: float = 0.2) -> torch.Tensor:
+    """L_visual for one view: ``w_l1 * L1 + w_dssim * (1 - SSIM)`` on [H, W, C] images (3DGS, FluidNexus Eq. 5)."""
+    loss = w_l1 * (pred - target).abs().mean()
+    if w_dssim:
+        loss = loss + w_dssim * (1.0 - ssim(pred, target))
+    return loss

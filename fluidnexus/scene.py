@@ -13,10 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
+from fluidnexus.scenery.obstacles import parse_obstacles
+
 from .atomic import read_json, write_json
 from .camera import Camera
 from .errors import InputError, require_finite, require_positive
-from .obstacles import parse_obstacles
 from .world_frame import SourceFrame
 
 FORMAT = "fluidnexus-scene/1"
@@ -173,7 +174,7 @@ class Scene:
     source: Source | None = None
     extra: dict = field(default_factory=dict)
     backgrounds: dict[str, Background] = field(default_factory=dict)
-    obstacles: tuple = ()  # fluidnexus.obstacles.SphereBody / MeshBody, scene coordinates
+    obstacles: tuple = ()  # scenery.obstacles.SphereBody / MeshBody, scene coordinates
     source_frame: SourceFrame | None = None  # None: the scene is its own source frame (world_frame.py)
     backdrop_color: tuple[float, float, float] | None = None  # a known backdrop colour (PINF frame_bkg_color)
 

@@ -423,3 +423,21 @@ def _to_bytes(frame: np.ndarray) -> np.ndarray:
     image = _quantize(frame)
     pad = ((0, image.shape[0] % 2), (0, image.shape[1] % 2), (0, 0))
     return np.ascontiguousarray(np.pad(image, pad, mode="edge") if any(p[1] for p in pad) else image)
+
+
+def read_footage(path: Path, size: tuple[int, int] | None = None) -> np.ndarray:
+    """[T, H, W, C] float32 at ``size`` (width, height; None: the file's); a gray video stored as RGB
+    (R = G = B) comes back with C = 1."""
+    video = read_video(path, size=size)
+    if video.shape[-1] == 3 and np.array_equal(video[..., :1], video[..., 1:2]) and np.array_equal(
+            video[..., :1], video[..., 2:]):
+        return np.ascontiguousarray(video[..., :1])
+    return video
+
+
+def resize_video(video: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """[T, H, W, C] resampled (bilinear) to ``size`` (width, height); unchanged when it already has that size."""
+    if video.shape[1:3] == (size[1], size[0]):
+        return video
+    return np.stack([cv2.resize(f, size, interpolation=cv2.INTER_LINEAR).reshape(size[1], size[0], -1)
+                     for f in video])

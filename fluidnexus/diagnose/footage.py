@@ -20,19 +20,19 @@ from pathlib import Path
 
 import numpy as np
 
-from fluidnexus.backdrop import resize_image, to_channels
-from fluidnexus.background.smoke_layer import NoSmoke, smoke_color, smoke_layer
-from fluidnexus.background.store import read_plate
+from fluidnexus.images import resize_image, to_channels
 from fluidnexus.scene import Scene
+from fluidnexus.scenery.plate_store import read_plate
+from fluidnexus.scenery.smoke_layer import NoSmoke, smoke_color, smoke_layer
 from fluidnexus.video import read_video
 
 log = logging.getLogger("fluidnexus")
 
 
 def run_layer(run_dir: Path | None):
-    """The static layer (``fluidnexus.static.StaticLayer``) recon fitted in ``run_dir``, or None (no run, or a run
+    """The static layer (``scenery.static_layer.StaticLayer``) recon fitted in ``run_dir``, or None (no run, or a run
     of footage without plates)."""
-    from fluidnexus.static import STATIC_FILE, load_static
+    from fluidnexus.scenery.static_layer import STATIC_FILE, load_static
 
     if run_dir is None or not (Path(run_dir) / STATIC_FILE).is_file():
         return None
@@ -53,7 +53,7 @@ def usable(scene: Scene, name: str, layer=None) -> bool:
 
 def layer_plate(layer, camera) -> np.ndarray:
     """[H, W, C] the static ``layer`` rendered from ``camera``, in the layer's channels (needs the engine)."""
-    from fluidnexus.static import render_static
+    from fluidnexus.scenery.static_layer import render_static
 
     return np.clip(render_static(layer, camera)[0].detach().cpu().numpy(), 0.0, 1.0).astype(np.float32)
 

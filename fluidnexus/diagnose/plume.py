@@ -19,9 +19,9 @@ import numpy as np
 from fluidnexus.engine import (AirDomain, AmbientAir, Buoyancy, Drag, ModelConfig, PBFSimulator, PhysicalParticles,
                                SolverConfig, SourceDisk, Viscosity, Vorticity, prune, rest_density_for_lattice,
                                step_particles)
+from fluidnexus.scenery.world import Obstacles
 
 from .observe import splat_points
-from .scenery import Obstacles
 
 #: The candidate extensions: name -> its parameters (defaults = the term switched off). See docs/diagnose.md.
 EXTENSIONS = {

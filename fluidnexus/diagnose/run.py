@@ -12,14 +12,14 @@ import numpy as np
 from fluidnexus.errors import InputError
 from fluidnexus.scene import load_ground_truth, load_scene
 from fluidnexus.scene_scale import scene_factor
+from fluidnexus.scenery.world import scene_obstacles
 
 from .emission import emission_window
 from .footage import run_layer, smoke_images, usable
 from .observe import Observed, observables
+from .parallel import FitPool
 from .plume import AIR_SPACING, EXTENSIONS, STRUCTURES, PlumeSetup, PlumeSimulator
 from .report import write_outputs
-from .scenery import scene_obstacles
-from .parallel import FitPool
 from .search import SPREAD_TOLERANCE, Fitter, fit_candidate, fit_structure, judge, search_spread
 
 log = logging.getLogger("fluidnexus")

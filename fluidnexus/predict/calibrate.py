@@ -20,9 +20,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from fluidnexus.scenery.backdrop import run_backdrop
+
 from ..engine import ModelConfig
 from ..engine.tensors import torch_dtype
-from ..backdrop import run_backdrop
 from ..frames import render_state
 from ..metrics import psnr
 from ..progress import progress
@@ -105,7 +106,7 @@ def search(start: Smoke, cameras: list, truth: list[np.ndarray], ctx: RunContext
     Args:
         start: the state the backtest starts from.
         cameras: [V] cameras; truth: [V] arrays [T, H, W, C] of the T frames after ``start`` seen by them.
-        behind: [V] what each camera sees behind the smoke (``fluidnexus.backdrop``; black without it).
+        behind: [V] what each camera sees behind the smoke (``scenery.backdrop``; black without it).
     """
     behind = behind or [None] * len(cameras)
     window = truth[0].shape[0]

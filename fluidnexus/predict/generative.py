@@ -13,10 +13,11 @@ from typing import Iterator
 import numpy as np
 import torch
 
-from ..backdrop import Behind
+from fluidnexus.scenery.backdrop import Behind
+from fluidnexus.scenery.obstacles import join
+
 from ..camera import Camera
 from ..frames import render_state
-from ..obstacles import join
 from ..progress import progress
 from ..recon.fit import Views, fit_appearance, fit_dynamics
 from ..recon.initial import emit, frame_generator
@@ -29,7 +30,7 @@ def rough_videos(states: list[Smoke], cameras: list[Camera], ctx: RunContext, co
                  behind: list[Behind] | None = None) -> np.ndarray:
     """[V, T, H, W, C] float32: each rollout frame seen by each camera, with the constant initial appearance
     (``constant``, for a generative refiner) or with the appearance the rollout carries, composited with what
-    each camera sees behind the smoke (``behind`` [V], ``fluidnexus.backdrop``; black without it)."""
+    each camera sees behind the smoke (``behind`` [V], ``scenery.backdrop``; black without it)."""
     def look(s: Smoke) -> Smoke:
         return constant_appearance(s, ctx.config) if constant else s
 

@@ -14,10 +14,11 @@ from typing import Iterator
 import numpy as np
 import torch
 
+from fluidnexus.scenery.obstacles import join
+
 from .. import engine
 from ..engine import ModelConfig, SolverConfig, Wind
 from ..errors import InputError
-from ..obstacles import join
 from ..recon.config import ReconConfig
 from ..recon.initial import emit, physical_source, visual_source
 from ..recon.smoke import Smoke
@@ -48,7 +49,7 @@ class RunContext:
     def of(cls, run: Run) -> "RunContext":
         """The run's context; the scene's obstacles (declared, and found in its static layer) become engine
         bodies (the engine must be started)."""
-        from ..recon.scenery import run_scenery
+        from fluidnexus.scenery.world import run_scenery
 
         cfg = run.config
         src = run.info.get("source") or _summary_source(run)

@@ -14,9 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
+from fluidnexus.scenery.backdrop import run_backdrop
+
 from .. import memory
 from ..atomic import write_json
-from ..backdrop import run_backdrop
 from ..camera import Camera
 from ..engine.tensors import torch_dtype
 from ..errors import InputError, RunError
@@ -28,6 +29,7 @@ from ..state import frame_path, save_frame
 from ..video import write_video
 from .anchor import anchor_videos, known_frames
 from .generative import refine_videos, refit, rough_videos
+from .memory import future_estimate
 from .rollout import RunContext, refit_model, rollout, workspace_for
 from .shading import ObstacleLayer, render_with_obstacle
 
@@ -113,7 +115,7 @@ def simulate_future(run: Run, out: Path, kind: str, frames: int, interaction: In
     start = Smoke.from_state(run.state(first), torch_dtype())
     limit = memory.parse_limit(None) if max_memory is None else max_memory
     cameras = [cam for _, cam in scene_cameras(run)]
-    memory.check(memory.future_estimate(kind, start, frames, ctx, model, cameras, refiner is not None), limit)
+    memory.check(future_estimate(kind, start, frames, ctx, model, cameras, refiner is not None), limit)
     prepare(out, run, kind, first, frames, ctx, model, info)
     tic = time.perf_counter()
     ws = workspace_for(start, frames, ctx, model)

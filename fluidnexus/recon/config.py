@@ -68,7 +68,7 @@ class ReconConfig:
         init_visual_height: height of the frame-0 visual cylinder above the source, metres.
         stabilization_steps: N_stable steps before frame 0.
         static_iters: iterations of the static-layer fit at the start of a run on a scene with clean plates
-            (``fluidnexus.static``, docs/static-layer.md).
+            (``scenery.static_layer``, docs/static-layer.md).
         length_scale: the scene's length-scale factor the lengths were derived with (1 on ScalarFlow); it also
             scales the loss unit (``loss_unit``) and the fixed offsets of the initialisation.
         max_loss: a loss above this (or NaN) stops the run (divergence). The visual spacing term is a sum over

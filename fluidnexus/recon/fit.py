@@ -20,8 +20,9 @@ import torch
 
 from .. import engine
 from ..camera import Camera
+from ..metrics import image_loss
 from .config import ReconConfig
-from .losses import anisotropy_loss, density_loss, image_loss, simulation_loss, spacing_loss, temporal_loss
+from .losses import anisotropy_loss, density_loss, simulation_loss, spacing_loss, temporal_loss
 from .smoke import Smoke
 from .timing import Stopwatch
 from .workspace import Workspace

@@ -4,7 +4,7 @@ The first frame's hull seeds the visual particles before their positions are fit
 initialisation), and the hulls of the first frames with smoke locate the inflow in the footage itself
 (``source_finder``), which is more reliable than a box corner of the calibration. A voxel centre is kept when it
 projects onto smoke in every view (a pixel that differs from what the view sees behind the smoke by more than
-``threshold``: its clean plate, the backdrop colour, or black; ``fluidnexus.backdrop``). A voxel outside some view's
+``threshold``: its clean plate, the backdrop colour, or black; ``scenery.backdrop``). A voxel outside some view's
 image is dropped, which keeps ghosts at the image borders out.
 """
 from __future__ import annotations

@@ -19,7 +19,6 @@ from .config import ReconConfig
 from .smoke import Smoke
 from .workspace import Workspace
 
-
 SOURCE_DEPTH = 0.02  # the initial physical cylinder starts this far below the source (metres at ScalarFlow's scale)
 
 

@@ -7,16 +7,6 @@ from __future__ import annotations
 
 import torch
 
-from ..metrics import ssim
-
-
-def image_loss(pred: torch.Tensor, target: torch.Tensor, w_l1: float = 0.8, w_dssim: float = 0.2) -> torch.Tensor:
-    """L_visual for one view: ``w_l1 * L1 + w_dssim * (1 - SSIM)`` on [H, W, C] images (3DGS, FluidNexus Eq. 5)."""
-    loss = w_l1 * (pred - target).abs().mean()
-    if w_dssim:
-        loss = loss + w_dssim * (1.0 - ssim(pred, target))
-    return loss
-
 
 def simulation_loss(p: torch.Tensor, p_sim: torch.Tensor, unit: float) -> torch.Tensor:
     """L_sim = mean |p_t - p_sim|^2 measured in ``unit`` metres (the release's 1 cm at ScalarFlow's scale,

@@ -5,7 +5,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..backdrop import Backdrop, Behind, scene_backdrop
+from fluidnexus.scenery.backdrop import Backdrop, Behind, scene_backdrop
+
 from ..camera import Camera
 from ..errors import InputError
 from ..scene import SCENE_FILE, Scene
@@ -21,7 +22,7 @@ class Observations:
         cameras: the views' cameras at the run resolution, [V].
         first: scene frame index of ``images[:, 0]``.
         images: float32 [V, T, H, W, C] in [0, 1]; memory V*T*H*W*C*4 bytes.
-        behind: what each view sees behind the smoke, at the run resolution [V] (``fluidnexus.backdrop``); empty:
+        behind: what each view sees behind the smoke, at the run resolution [V] (``scenery.backdrop``); empty:
             black.
     """
 

@@ -17,80 +17,37 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import torch
 
+from fluidnexus.scenery.backdrop import scene_backdrop
+from fluidnexus.scenery.static_layer import STATIC_FILE, save_static
+from fluidnexus.scenery.world import declared_scenery, fit_scenery
+
 from .. import engine, memory
 from ..atomic import read_json, write_json
-from ..engine import ModelConfig, SolverConfig
 from ..engine.tensors import torch_dtype
 from ..errors import InputError, RunError
 from ..progress import progress
 from ..runs import RUN_FORMAT
-from ..scene import SCENE_FILE, Scene, Source
-from ..scene_scale import SCALARFLOW_SOURCE_RADIUS, scaled_solver, scene_factor
+from ..scene import Scene
 from ..state import frame_path, load_frame, save_frame
 from .config import ReconConfig, differing_keys
 from .fit import Views, fit_appearance, fit_dynamics, fit_look, fit_positions
-from ..engine import cylinder_lattice
-from .initial import emit, frame_generator, initial_smoke, initial_visual, physical_source, visual_source
+from .initial import emit, frame_generator, initial_smoke, initial_visual
+from .memory import recon_estimate
 from .observations import load_observations, resolve_frames
-from .source_finder import FoundSource, find_source
-from ..backdrop import scene_backdrop
-from ..static import STATIC_FILE, save_static
-from .scenery import declared_scenery, fit_scenery
+from .setup import RunSetup, capacities, scene_source
 from .smoke import Smoke
+from .source_finder import FoundSource, find_source
 from .support import support
 from .timing import Stopwatch
 from .workspace import Workspace
 
 log = logging.getLogger("fluidnexus")
-
-
-@dataclass(frozen=True)
-class RunSetup:
-    """What a reconstruction needs besides the scene: settings, the PBF gas, and the resolved frame range."""
-
-    config: ReconConfig
-    solver: SolverConfig
-    model: ModelConfig
-
-    def to_dict(self) -> dict:
-        return {"recon": self.config.to_dict(), "solver": self.solver.to_dict(), "model": self.model.to_dict()}
-
-
-def default_setup(scene: Scene, config: ReconConfig, model: ModelConfig | None = None) -> RunSetup:
-    """Settings for ``scene``: the solver's time step is one frame (1 / fps), its lengths follow the config's
-    length scale (``scene_scale.scaled_solver``)."""
-    solver = scaled_solver(SolverConfig(dt=1.0 / scene.fps), config.length_scale)
-    return RunSetup(config, solver, model or ModelConfig.scalarflow())
-
-
-def scene_source(scene: Scene) -> Source:
-    """The smoke inflow: the scene's ``source``, else the bottom centre of its volume."""
-    if scene.source is not None:
-        return scene.source
-    if scene.volume is not None:
-        return Source(tuple(float(v) for v in scene.volume.bottom_center),
-                      SCALARFLOW_SOURCE_RADIUS * scene_factor(scene))
-    raise InputError(scene.root / SCENE_FILE, "source", "the scene has neither a source nor a volume")
-
-
-def capacities(n_frames: int, setup: RunSetup, source: Source, n_visual: int) -> tuple[int, int]:
-    """Upper bounds of the physical and visual particle counts over a run (initial + every emission)."""
-    cfg = setup.config
-    cx, cy, cz = source.center
-    n0 = len(cylinder_lattice((cx, cz), cfg.physical_radius, 0.0, cfg.physical_height, cfg.physical_spacing))
-    steps = n_frames + cfg.stabilization_steps + 1
-    visual = n_visual + (n_frames + 1) * visual_source(source, cfg).count + 64
-    physical = n0 + steps * physical_source(source, cfg).count + 64
-    if cfg.physical_support == "on":  # a frame seeds at most one particle per visual particle (support.py);
-        # survivors of earlier frames can exceed this, and then the workspace grows (Workspace.reserve)
-        physical += visual
-    return physical, visual
 
 
 def locate_smoke(scene: Scene, obs, cfg: ReconConfig, obstacle=None) -> tuple[FoundSource, np.ndarray]:
@@ -153,7 +110,7 @@ def reconstruct(scene: Scene, out: str | Path, setup: RunSetup, resume: bool = F
     frames = resolve_frames(scene, cfg.frames)
     declared = declared_scenery(scene)  # before anything is written
     limit = memory.parse_limit(None) if max_memory is None else max_memory
-    memory.check(memory.recon_estimate(scene, replace(setup, config=replace(cfg, frames=frames)), frames, 0), limit)
+    memory.check(recon_estimate(scene, replace(setup, config=replace(cfg, frames=frames)), frames, 0), limit)
     if not resume:
         _refuse_occupied(out)
     cameras = {v.name: v.camera.scaled(cfg.resolution) for v in scene.usable_views()}
@@ -167,7 +124,7 @@ def reconstruct(scene: Scene, out: str | Path, setup: RunSetup, resume: bool = F
     obs = load_observations(scene, frames, cfg.resolution, cfg.channels, backdrop)
     found, seeds = locate_smoke(scene, obs, cfg, obstacle)
     source = found.source
-    log.info("%s", memory.check(memory.recon_estimate(scene, setup, frames, len(seeds)), limit).describe())
+    log.info("%s", memory.check(recon_estimate(scene, setup, frames, len(seeds)), limit).describe())
     setup = replace(setup, config=_initial_look(scene, cfg, obs, seeds, out, resume))
     first = _prepare_folder(out, scene, setup, frames, resume)
     if first >= frames[1] and (out / "summary.json").is_file():  # a finished run resumed: nothing to do

@@ -10,12 +10,12 @@ import numpy as np
 from click.testing import CliRunner
 
 from cli.main import main
-from fluidnexus.backdrop import LUMA
 from fluidnexus.diagnose.footage import run_layer
 from fluidnexus.diagnose.plume import PlumeParams, PlumeSetup, PlumeSimulator
 from fluidnexus.diagnose.run import load_observed
-from fluidnexus.diagnose.scenery import Obstacles
-from fluidnexus.static import StaticLayer, save_static
+from fluidnexus.images import LUMA
+from fluidnexus.scenery.static_layer import StaticLayer, save_static
+from fluidnexus.scenery.world import Obstacles
 from fluidnexus.video import read_video, write_frames
 
 from .eulerian_plume import Grid, PlumeEffects, simulate, write_scene

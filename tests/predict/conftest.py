@@ -14,7 +14,7 @@ def start_run(tmp_path_factory, ti_engine):
     """Run folder with frame 0: stabilised physical particles and a visual cylinder over the source (68x120)."""
     from fluidnexus.recon.config import ReconConfig
     from fluidnexus.recon.initial import initial_smoke, initial_visual
-    from fluidnexus.recon.run import capacities, default_setup, scene_source
+    from fluidnexus.recon.setup import capacities, default_setup, scene_source
     from fluidnexus.recon.workspace import Workspace
     from fluidnexus.runs import RUN_FORMAT
     from fluidnexus.scene import load_scene

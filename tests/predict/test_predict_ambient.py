@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-
 from clirun import assert_clean_failure
+
 from fluidnexus.engine import AmbientAir, ModelConfig
 from fluidnexus.engine.forces import Buoyancy, Viscosity
 from fluidnexus.runs import open_run
@@ -147,8 +147,9 @@ def test_calibration_in_air_searches_alpha_alone(start_run):
 def test_memory_estimate_counts_the_air(start_run, tmp_path):
     """The air (about 22 k particles around 5 k of smoke) is in the estimate; a limit between the paper's gas's
     estimate and the air's refuses the air model before anything is written."""
-    from fluidnexus.memory import future_estimate, physical_bytes
+    from fluidnexus.memory import physical_bytes
     from fluidnexus.predict.air import air_domain
+    from fluidnexus.predict.memory import future_estimate
 
     ctx, start = _start(start_run)
     paper, air = (future_estimate("predict", start, 4, ctx, m, [], False) for m in (ModelConfig(TERMS), AIR))

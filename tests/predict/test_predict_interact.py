@@ -6,10 +6,10 @@ import pytest
 import torch
 import trimesh
 
-from fluidnexus.predict.obstacle import make_obstacle
 from fluidnexus.predict.rollout import RunContext, rollout, with_wind, workspace_for
 from fluidnexus.recon.smoke import Smoke
 from fluidnexus.runs import open_run
+from fluidnexus.scenery.obstacles import make_obstacle
 
 from .conftest import invoke, ok
 

@@ -12,7 +12,8 @@ import pytest
 from fluidnexus import memory
 from fluidnexus.errors import InputError
 from fluidnexus.recon.config import config_for_scene
-from fluidnexus.recon.run import default_setup
+from fluidnexus.recon.memory import recon_estimate
+from fluidnexus.recon.setup import default_setup
 from fluidnexus.scene import load_scene
 
 from .conftest import TINY, invoke, ok
@@ -65,8 +66,8 @@ def test_estimate_grows_with_the_settings(four_view_scene):
     scene = load_scene(four_view_scene)
     small = default_setup(scene, config_for_scene(scene, {"resolution": 0.25}))
     big = default_setup(scene, config_for_scene(scene, {"resolution": 0.5, "visual_spacing": 0.003}))
-    a = memory.recon_estimate(scene, small, (0, 120), 1000)
-    b = memory.recon_estimate(scene, big, (0, 120), 1000)
+    a = recon_estimate(scene, small, (0, 120), 1000)
+    b = recon_estimate(scene, big, (0, 120), 1000)
     assert b.parts["video cache"] == pytest.approx(4 * a.parts["video cache"], rel=0.02)  # pixel rounding
     assert b.parts["visual hull"] > a.parts["visual hull"] and b.total > a.total
 

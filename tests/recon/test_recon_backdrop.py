@@ -7,10 +7,10 @@ import json
 import numpy as np
 import pytest
 
-from fluidnexus.backdrop import run_backdrop
 from fluidnexus.frames import render_state
 from fluidnexus.metrics import psnr
 from fluidnexus.runs import open_run
+from fluidnexus.scenery.backdrop import run_backdrop
 from fluidnexus.video import read_video
 
 from .backdrop_scene import HELD_OUT, INPUTS, write_scenes

@@ -5,7 +5,6 @@ from dataclasses import replace
 import numpy as np
 import torch
 
-from fluidnexus.backdrop import scene_backdrop
 from fluidnexus.camera import Camera
 from fluidnexus.engine import SourceDisk
 from fluidnexus.engine.emitter import disk_lattice
@@ -13,6 +12,7 @@ from fluidnexus.recon.config import ReconConfig
 from fluidnexus.recon.observations import Observations
 from fluidnexus.recon.source_finder import find_source
 from fluidnexus.scene import Scene, Source, View, Volume
+from fluidnexus.scenery.backdrop import scene_backdrop
 
 
 def _angle(a, b) -> float:

@@ -3,7 +3,7 @@ volume): a fifth, held-out camera gets its background, and the ball is found as 
 import numpy as np
 import pytest
 
-from .scenes import BALL_CENTER, BALL_RADIUS, HI, LO, camera, render
+from .static_scenes import BALL_CENTER, BALL_RADIUS, HI, LO, camera, render
 
 TRAIN_AZIMUTHS = (-40, -15, 15, 40)
 HELD_OUT_AZIMUTH = 0
@@ -13,7 +13,7 @@ ITERATIONS = 400
 
 @pytest.fixture(scope="module")
 def fitted(ti_engine):
-    from fluidnexus.static import StaticConfig, fit_static
+    from fluidnexus.scenery.static_layer import StaticConfig, fit_static
 
     cameras = [camera(a) for a in TRAIN_AZIMUTHS]
     plates = [render(c) for c in cameras]
@@ -24,7 +24,7 @@ def fitted(ti_engine):
 
 def test_held_out_camera_gets_its_background(fitted):
     from fluidnexus.metrics import psnr
-    from fluidnexus.static import render_static
+    from fluidnexus.scenery.static_layer import render_static
 
     cameras, plates, layer = fitted
     held = camera(HELD_OUT_AZIMUTH)
@@ -39,7 +39,7 @@ def test_held_out_camera_gets_its_background(fitted):
 
 def test_ball_is_found_as_an_obstacle(fitted):
     from fluidnexus.engine.obstacle import GridObstacle, SphereObstacle
-    from fluidnexus.static import find_obstacles, refine_balls
+    from fluidnexus.scenery.found_obstacles import find_obstacles, refine_balls
 
     cameras, _, layer = fitted
     found = find_obstacles(layer, cameras, LO, HI)
@@ -67,7 +67,7 @@ def _ball_mask(cam) -> np.ndarray:
 
 def test_silhouette_rays_graze_the_ball():
     """The rays through the outline of a ball's silhouette lie at its radius from its centre (within a pixel)."""
-    from fluidnexus.static.silhouettes import silhouette_rays
+    from fluidnexus.scenery.silhouettes import silhouette_rays
 
     cam = camera(10.0, size=96)
     guess = BALL_CENTER + np.array([0.03, -0.02, 0.02])
@@ -84,7 +84,8 @@ def test_balls_are_refitted_to_their_silhouettes(ti_engine):
     plate): the layer fitted to them outlines the ball in its matte, and a found ball 15 % off in centre and radius
     is refitted to within 5 % of the radius (measured at 64 x 64 px, the ball about 11 px across, 200 iterations:
     centre 2.7 % of r, radius +0.8 %)."""
-    from fluidnexus.static import FoundObstacle, StaticConfig, fit_static, refine_balls
+    from fluidnexus.scenery.found_obstacles import FoundObstacle, refine_balls
+    from fluidnexus.scenery.static_layer import StaticConfig, fit_static
 
     cameras = [camera(a) for a in TRAIN_AZIMUTHS]
     plates = []
@@ -104,7 +105,7 @@ def test_balls_are_refitted_to_their_silhouettes(ti_engine):
 
 def test_declared_obstacle_wins(fitted, ti_engine):
     from fluidnexus.engine.obstacle import SphereObstacle
-    from fluidnexus.static import find_obstacles, merge_with_declared
+    from fluidnexus.scenery.found_obstacles import find_obstacles, merge_with_declared
 
     cameras, _, layer = fitted
     found = find_obstacles(layer, cameras, LO, HI)
@@ -116,7 +117,7 @@ def test_declared_obstacle_wins(fitted, ti_engine):
 
 def test_saved_layer_loads_back_and_bad_files_are_refused(fitted, tmp_path):
     from fluidnexus.errors import InputError
-    from fluidnexus.static import load_static, save_static
+    from fluidnexus.scenery.static_layer import load_static, save_static
 
     _, _, layer = fitted
     path = save_static(tmp_path, layer)
@@ -133,8 +134,8 @@ def test_saved_layer_loads_back_and_bad_files_are_refused(fitted, tmp_path):
 
 
 def test_fit_is_deterministic(ti_engine):
-    from fluidnexus.static import StaticConfig, fit_static
-    from fluidnexus.static.stereo import StereoConfig
+    from fluidnexus.scenery.static_layer import StaticConfig, fit_static
+    from fluidnexus.scenery.stereo import StereoConfig
 
     cameras = [camera(a, size=24) for a in (-30, 30)]
     plates = [render(c) for c in cameras]
@@ -148,8 +149,8 @@ def test_fit_is_deterministic(ti_engine):
 
 def test_confidence_weights_the_loss(ti_engine):
     """A plate whose right half has confidence 0 pulls nothing there: the fit is the same whatever that half shows."""
-    from fluidnexus.static import StaticConfig, fit_static
-    from fluidnexus.static.stereo import StereoConfig
+    from fluidnexus.scenery.static_layer import StaticConfig, fit_static
+    from fluidnexus.scenery.stereo import StereoConfig
 
     cameras = [camera(a, size=24) for a in (-30, 30)]
     plates = [render(c) for c in cameras]
@@ -173,7 +174,8 @@ def test_confidence_weights_the_loss(ti_engine):
 def test_one_view_places_nothing(ti_engine):
     """A single view confirms no depth and carves no hull: the layer is its background colour alone (a single video
     gets no static Gaussians; its own plate is its backdrop) and no obstacle is found."""
-    from fluidnexus.static import StaticConfig, find_obstacles, fit_static, render_static
+    from fluidnexus.scenery.found_obstacles import find_obstacles
+    from fluidnexus.scenery.static_layer import StaticConfig, fit_static, render_static
 
     cam = camera(0, size=24)
     plate = render(cam)

@@ -4,13 +4,12 @@ import json
 import numpy as np
 import pytest
 import trimesh
-
 from clirun import invoke, ok
-from fluidnexus.obstacles import MeshBody, SphereBody, engine_obstacle
-from fluidnexus.scene import load_scene
-from fluidnexus.world_frame import SourceFrame
-
 from commands.test_bad_input import assert_clean_failure
+
+from fluidnexus.scene import load_scene
+from fluidnexus.scenery.obstacles import MeshBody, SphereBody, engine_obstacle
+from fluidnexus.world_frame import SourceFrame
 
 INSIDE = (0.34, 0.25, -0.25)  # a point in the sample's volume
 
@@ -51,7 +50,7 @@ def test_calibrate_obstacle_sphere_and_mesh_are_written_in_scene_coordinates(sam
 
 
 def test_obstacle_options_are_converted_by_the_source_frame(tmp_path):
-    from fluidnexus.obstacles import parse_option, place_obstacles
+    from fluidnexus.scenery.obstacles import parse_option, place_obstacles
 
     frame = SourceFrame.for_import("Z", 0.1)  # a z-up file in decimetres
     mesh = _ball_file(tmp_path / "ball.ply", center=(1.0, 2.0, 3.0), radius=0.5)
@@ -67,8 +66,9 @@ def test_engine_bodies_keep_points_out_of_every_obstacle(sample_scene, tmp_path,
     body = engine_obstacle((SphereBody(INSIDE, 0.05), MeshBody("ball.ply")), tmp_path)
     pts = np.random.default_rng(0).uniform([0.25, 0.2, -0.3], [0.4, 0.45, -0.15], (2000, 3))
     assert (body.distance(pts) < 0).sum() > 50
-    from fluidnexus.engine.obstacle import PointProjector
     import torch
+
+    from fluidnexus.engine.obstacle import PointProjector
 
     out = PointProjector(len(pts))(body, torch.as_tensor(pts)).numpy()
     assert body.distance(out).min() > -2e-3  # the mesh's grid distance is within a grid cell of the true one

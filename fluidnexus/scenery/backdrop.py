@@ -17,40 +17,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
-from .camera import Camera
-from .scene import Scene
-
-LUMA = np.array([0.299, 0.587, 0.114], np.float32)  # the gray of a colour, as fluidnexus.video reads gray footage
-
-
-def to_channels(image: np.ndarray, channels: int) -> np.ndarray:
-    """An [..., 3] colour image or value as [..., channels] (1: luma; 3: as is)."""
-    image = np.asarray(image, np.float32)
-    if channels == image.shape[-1]:
-        return image
-    if channels == 1 and image.shape[-1] == 3:
-        return (image @ LUMA)[..., None].astype(np.float32)
-    if channels == 3 and image.shape[-1] == 1:
-        return np.repeat(image, 3, axis=-1)
-    raise ValueError(f"cannot convert {image.shape[-1]} channels into {channels}")
-
-
-def resize_image(image: np.ndarray, width: int, height: int) -> np.ndarray:
-    """[H, W, C] resized to ``height x width`` (area averaging to shrink, bilinear to enlarge)."""
-    if image.shape[:2] == (height, width):
-        return image
-    shrink = width <= image.shape[1] and height <= image.shape[0]
-    out = cv2.resize(image, (width, height), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
-    return out.reshape(height, width, image.shape[2])
+from ..camera import Camera
+from ..images import resize_image, to_channels
+from ..scene import Scene
 
 
 @dataclass(frozen=True, eq=False)
 class Behind:
     """What a render composites the smoke with: ``background`` [C] (one colour) or [H, W, C] (per pixel), and
-    ``static`` (a ``fluidnexus.static.StaticLayer`` whose Gaussians are depth-sorted with the smoke) or None."""
+    ``static`` (a ``scenery.static_layer.StaticLayer`` whose Gaussians are depth-sorted with the smoke) or None."""
 
     background: np.ndarray
     static: object | None = None
@@ -72,7 +49,7 @@ class Backdrop:
         plates: input view name -> its clean plate [H, W, 3] at the camera's full size.
         smoke_layers: names of the views whose videos are smoke layers over black (``synth`` recorded
             ``smoke_layer`` in their provenance).
-        layer: the run's static layer (``fluidnexus.static.StaticLayer``, in ``channels``) or None.
+        layer: the run's static layer (``scenery.static_layer.StaticLayer``, in ``channels``) or None.
         color: the scene's backdrop colour (3,) or None.
     """
 
@@ -105,7 +82,7 @@ class Backdrop:
         or None."""
         if self.layer is None:
             return None
-        from .static import inside_volume
+        from .static_layer import inside_volume
 
         part = inside_volume(self.layer)
         return part if len(part) else None
@@ -118,7 +95,7 @@ def black_backdrop(channels: int) -> Backdrop:
 
 def scene_backdrop(scene: Scene, channels: int, layer=None) -> Backdrop:
     """The backdrop of ``scene`` (its plates and colour) with an optional static layer."""
-    from .background.store import read_plate
+    from .plate_store import read_plate
 
     plates = {name: read_plate(scene, name)[0] for name in scene.backgrounds}
     color = None if scene.backdrop_color is None else np.asarray(scene.backdrop_color, np.float32)
@@ -129,7 +106,7 @@ def scene_backdrop(scene: Scene, channels: int, layer=None) -> Backdrop:
 def run_backdrop(run) -> Backdrop:
     """The backdrop of a run (``fluidnexus.runs.Run``): its scene's plates and colour, and its static layer
     (``RUN/static.npz``) where recon fitted one."""
-    from .static import STATIC_FILE, load_static
+    from .static_layer import STATIC_FILE, load_static
 
     layer = load_static(run.root / STATIC_FILE) if (run.root / STATIC_FILE).is_file() else None
     return scene_backdrop(run.scene(check_videos=False), run.channels, layer)

@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from fluidnexus.background.plates import NeverClear, estimate_plate
+from fluidnexus.scenery.plates import NeverClear, estimate_plate
 
-from .scenes import backdrop, composite, psnr, smoke_alpha
+from .plate_scenes import backdrop, composite, psnr, smoke_alpha
 
 TEMPORAL_PSNR = 40.0  # dB; measured 45.5-46.0 dB on these scenes (docs/background.md)
 

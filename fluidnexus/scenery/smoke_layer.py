@@ -38,14 +38,18 @@ numpy, over chunks of frames (about ``CHUNK_VALUES`` values each) besides the re
 """
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from fluidnexus.backdrop import to_channels
-
+from ..errors import InputError
+from ..images import resize_image, to_channels
+from .plate_store import read_plate
 from .plates import CONFIDENT, MIN_CHANGE, NOISE_FACTOR, noise_level
+
+log = logging.getLogger("fluidnexus")
 
 MIN_CONTRAST = 0.1  # |A - B| (Euclidean over the channels, [0, 1] units) below which a pixel is ill-conditioned
 DENSE_FRACTION = 0.01  # share of the smoke samples taken as the densest smoke
@@ -215,3 +219,23 @@ def _beyond_samples(color: np.ndarray, behind: np.ndarray, image: np.ndarray, ba
     if target == now or abs(now - base) < MIN_CHANGE:  # within the bounds, or no gray to scale along
         return np.asarray(color, np.float64)
     return np.clip(behind + (color - behind) * (target - base) / (now - base), 0.0, 1.0)
+
+
+def view_smoke_layer(scene, view, footage: np.ndarray, color: np.ndarray | None) -> tuple[np.ndarray, dict]:
+    """The smoke layer of ``view``'s footage [T, h, w, C] over its plate (docs/background.md, "Smoke layer for a
+    single video"), premultiplied over black, and its provenance record; ``color`` [3]: the smoke's colour as the
+    user gives it (None: estimated). InputError naming the video when it shows no smoke over its plate."""
+    plate, confidence = read_plate(scene, view.name)
+    height, width = footage.shape[1:3]
+    plate = to_channels(resize_image(plate, width, height), footage.shape[-1])
+    confidence = resize_image(confidence[..., None], width, height)[..., 0]
+    record = scene.backgrounds[view.name].plate
+    known = None if color is None else to_channels(color, footage.shape[-1])
+    try:
+        smoke = smoke_layer(footage, plate, confidence, known)
+    except NoSmoke as err:
+        raise InputError(scene.video_path(view), None, f"shows no smoke over its plate {record} ({err})") from None
+    log.info("synth: smoke layer of %s over %s: colour %s, ill-conditioned pixels %.1f%%", view.name, record,
+             smoke.summary()["smoke_color"], 100 * smoke.ill_conditioned)
+    return smoke.layer, {"over": "black", "input_plate": record, **smoke.summary(),
+                         "smoke_color_from": "estimated" if color is None else "--smoke-color"}

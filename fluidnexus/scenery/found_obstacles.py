@@ -29,8 +29,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..scene_scale import box_size
-from .layer import StaticLayer, inside_volume, render_static
 from .silhouettes import fit_ball_to_rays, silhouette_rays
+from .static_layer import StaticLayer, inside_volume, render_static
 
 
 @dataclass(frozen=True)

@@ -1,11 +1,11 @@
-"""Plane-sweep stereo and the carved hull that seed the static layer (fluidnexus/static/stereo.py, hull.py), on
+"""Plane-sweep stereo and the carved hull that seed the static layer (fluidnexus/scenery/stereo.py, static_hull.py), on
 the ray-cast test scene: a textured backdrop plane behind a 1 m volume with a shaded red ball in it."""
 import numpy as np
 
-from fluidnexus.static.hull import hull_points
-from fluidnexus.static.stereo import depth_maps
+from fluidnexus.scenery.static_hull import hull_points
+from fluidnexus.scenery.stereo import depth_maps
 
-from .scenes import BACKDROP_Z, BALL_CENTER, BALL_RADIUS, HI, LO, camera, render
+from .static_scenes import BACKDROP_Z, BALL_CENTER, BALL_RADIUS, HI, LO, camera, render
 
 AZIMUTHS = (-40, -15, 15, 40)
 

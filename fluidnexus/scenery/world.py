@@ -1,12 +1,12 @@
-"""The static scene at the start of a reconstruction (issue 16, parts 3-4): the static layer fitted to the input
-views' clean plates, and the obstacles it shows, joined with the scene's declared ones.
+"""The scenery of a scene or run: its static layer (fitted to the input views' clean plates) and every obstacle the
+gas flows around, declared and found.
 
 A scene without plates has no static layer; its obstacles are the declared ones (scene.json ``obstacles``). With
-plates, recon fits the layer at the run's resolution and colour channels (``fluidnexus.static.fit_static``, seeded
-by the run's seed) and saves it as ``RUN/static.npz`` (a resumed run reads it back instead of fitting again), finds the
-opaque bodies inside the volume (``find_obstacles``) and keeps those that do not touch a declared body
-(``merge_with_declared``: where the user declared a body, theirs wins).
-"""
+plates, recon fits the layer at the run's resolution and colour channels (``static_layer.fit_static``, seeded by the
+run's seed) and saves it as ``RUN/static.npz`` (a resumed run reads it back instead of fitting again), finds the
+opaque bodies inside the volume (``found_obstacles.find_obstacles``) and keeps those that do not touch a declared
+body (``merge_with_declared``: where the user declared a body, theirs wins). Predict, interact and diagnose rebuild
+a run's bodies with :func:`run_scenery` (the finder is deterministic)."""
 from __future__ import annotations
 
 import logging
@@ -15,12 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..backdrop import resize_image, to_channels
-from ..background.store import read_plate
-from ..obstacles import engine_obstacle, join
+from ..images import resize_image, to_channels
 from ..scene import Scene
-from ..static import (STATIC_FILE, StaticConfig, find_obstacles, fit_static, load_static, merge_with_declared,
-                      refine_balls)
+from .found_obstacles import find_obstacles, merge_with_declared, refine_balls
+from .obstacles import engine_obstacle, join
+from .plate_store import read_plate
+from .static_layer import STATIC_FILE, StaticConfig, fit_static, load_static
 
 log = logging.getLogger("fluidnexus")
 
@@ -98,3 +98,30 @@ def run_scenery(run) -> Scenery:
         return declared
     cameras = {v.name: v.camera.scaled(run.resolution) for v in scene.usable_views()}
     return fit_scenery(scene, declared, cameras, run.channels, 0, 0, saved)
+
+
+# Diagnose simulates the same bodies in worker processes (``diagnose --jobs``): it passes where they come from, not
+# the engine bodies (a carved body is a Taichi field), and every process rebuilds them.
+@dataclass(frozen=True)
+class Obstacles:
+    """Where the bodies come from: ``scene_dir``'s declared obstacles, or with ``run_dir`` that run's declared and
+    found ones."""
+
+    scene_dir: str
+    run_dir: str | None = None
+
+    def body(self):
+        """The engine body of every obstacle (``engine.obstacle``), or None; needs the engine started."""
+        from ..runs import open_run
+        from ..scene import load_scene
+
+        if self.run_dir is not None:
+            return run_scenery(open_run(self.run_dir)).obstacle
+        return declared_scenery(load_scene(self.scene_dir)).obstacle
+
+
+def scene_obstacles(scene_dir: Path, run_dir: Path | None = None) -> tuple[Obstacles | None, object | None]:
+    """(the source of the bodies, or None when there are none; the bodies themselves, for this process)."""
+    source = Obstacles(str(scene_dir), None if run_dir is None else str(run_dir))
+    body = source.body()
+    return (source, body) if body is not None else (None, None)

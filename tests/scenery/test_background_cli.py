@@ -6,12 +6,12 @@ import cv2
 import numpy as np
 import pytest
 
-from fluidnexus.background.store import read_image, read_plate
 from fluidnexus.errors import InputError
 from fluidnexus.scene import load_scene
+from fluidnexus.scenery.plate_store import read_image, read_plate
 from tests.clirun import assert_clean_failure, invoke, ok
 
-from .scenes import HEIGHT, WIDTH, make_scene, psnr
+from .plate_scenes import HEIGHT, WIDTH, make_scene, psnr
 
 CLI_PSNR = 38.0  # dB through H.264 (crf 12); measured 41.6-46.1 dB (docs/background.md)
 

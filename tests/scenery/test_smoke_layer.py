@@ -7,14 +7,14 @@ import cv2
 import numpy as np
 import pytest
 
-from fluidnexus.background.smoke_layer import MIN_CONTRAST, NoSmoke, smoke_layer
-from fluidnexus.background.store import read_image, read_plate
 from fluidnexus.scene import load_scene
+from fluidnexus.scenery.plate_store import read_image, read_plate
+from fluidnexus.scenery.smoke_layer import MIN_CONTRAST, NoSmoke, smoke_layer
 from fluidnexus.video import read_video, write_video
 from tests.clirun import assert_clean_failure, invoke, ok
 from tests.gen.test_gen_cli import tiny_scene
 
-from .scenes import backdrop, noise
+from .plate_scenes import backdrop, noise
 
 WIDTH, HEIGHT, FRAMES = 32, 24, 8
 SMOKE = {"bright": (0.95, 0.93, 0.9), "dark": (0.1, 0.12, 0.15)}  # on a dark / a bright textured backdrop

@@ -5,8 +5,8 @@ The fit is a small 3D Gaussian splatting optimisation (Kerbl et al. 2023):
 
 - **Initialisation** (seeds of opacity ``initial_opacity``, each as wide as its spacing): for each camera a jittered
   grid of rays through its image, each seeding one Gaussian with its plate's colour at the depth plane-sweep
-  stereo finds and another view confirms (``fluidnexus.static.stereo``); the lattice nodes of the volume that no
-  view sees through (``fluidnexus.static.hull``: a surface without texture, which the stereo cannot place); a ray
+  stereo finds and another view confirms (``scenery.stereo``); the lattice nodes of the volume that no
+  view sees through (``scenery.static_hull``: a surface without texture, which the stereo cannot place); a ray
   without a confirmed depth seeds on a shell ``shell`` half-diagonals beyond the volume's centre when its view
   shows a textured backdrop (which hides the seed from other cameras), and nothing otherwise. A ray or node
   showing the plates' median colour (within ``plain``) seeds nothing: a plain colour has no depth, and the learned
@@ -42,10 +42,10 @@ from ..atomic import atomic_file
 from ..camera import Camera
 from ..engine.tensors import torch_dtype
 from ..errors import InputError
+from ..metrics import image_loss
 from ..progress import progress
-from ..recon.losses import image_loss
 from ..scene_scale import box_size
-from .hull import hull_points, in_box
+from .static_hull import hull_points, in_box
 from .stereo import DepthMap, StereoConfig, depth_maps
 
 STATIC_FILE = "static.npz"
@@ -58,8 +58,8 @@ class StaticConfig:
 
     iterations: int = 400
     rays: int = 32  # rays per image side per view
-    lattice: int = 24  # nodes along the volume's size for the seeds no view sees through (fluidnexus.static.hull)
-    stereo: StereoConfig = StereoConfig()  # the seeds' depths (fluidnexus.static.stereo)
+    lattice: int = 24  # nodes along the volume's size for the seeds no view sees through (scenery.static_hull)
+    stereo: StereoConfig = StereoConfig()  # the seeds' depths (scenery.stereo)
     shell: float = 2.0  # seeds without a confirmed depth lie this many half-diagonals beyond the volume's centre
     backdrop: float = 0.05  # a view shows a textured backdrop when this share of its pixels has a confirmed depth
     # outside the volume
