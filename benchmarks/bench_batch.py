@@ -71,7 +71,7 @@ def _noop() -> float:
 
 
 def _import_pipeline() -> float:
-    import cli.main  # noqa: F401  (what every batch step imports first)
+    import fluidnexus_cli.main  # noqa: F401  (what every batch step imports first)
 
     return time.time()
 

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from click.testing import CliRunner
 
-from cli.main import main
+from fluidnexus_cli.main import main
 
 
 def run() -> None:

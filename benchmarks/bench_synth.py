@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 from click.testing import CliRunner
 
-from cli.main import main
+from fluidnexus_cli.main import main
 from fluidnexus.video import read_footage
 from fluidnexus.gen.axisym import AxisymConfig, AxisymSynthesizer
 from fluidnexus.gen.synthesizer import SynthesisInput

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from click.testing import CliRunner
 
-from cli.main import main
+from fluidnexus_cli.main import main
 from fluidnexus.recon.observations import load_observations
 from fluidnexus.samples import sample_path
 from fluidnexus.scene import load_scene

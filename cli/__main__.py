@@ -1,4 +1,4 @@
-"""``python -m cli`` runs the ``fluidnexus`` command."""
+"""``python -m fluidnexus_cli`` runs the ``fluidnexus`` command."""
 from .main import main
 
 main()

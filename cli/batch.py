@@ -37,15 +37,18 @@ def batch(manifest: Path, out: Path, address: str | None, resume: bool, cpus_per
     from fluidnexus.batch.results import write_record, write_results
     from fluidnexus.batch.runner import Resources, require_ray, run_batch
 
+    from .batch_steps import CommandSteps
+
     require_ray()
-    spec = load_manifest(manifest)
+    commands = CommandSteps()
+    spec = load_manifest(manifest, commands)
     if resume and not (out / "batch.json").is_file() and not (out / "scenes").is_dir():
         raise InputError(out, None, "--resume: no earlier batch here")
     out.mkdir(parents=True, exist_ok=True)
     started = time.time()
     options = {"address": address, "cpus_per_scene": cpus_per_scene, "gpus_per_scene": gpus_per_scene}
     states, cluster = run_batch(spec, out, address, Resources(cpus_per_scene, gpus_per_scene),
-                                lambda s: write_results(s, out))
+                                lambda s: write_results(s, out), commands)
     stats = write_results(states, out)
     write_record(out, spec, cluster, options, states, started, stats)
     failed = [s.job.name for s in states if s.status != "ok"]

@@ -10,7 +10,7 @@ import click
 
 from fluidnexus.atomic import write_json
 from fluidnexus.calibrate.arc import arc_rig
-from fluidnexus.calibrate.assemble import Recording, Roles, assign_roles, write_scene
+from fluidnexus.calibrate.assemble import PROTOCOLS, Recording, Roles, assign_roles, write_scene
 from fluidnexus.calibrate.colmap import media_by_stem, read_colmap
 from fluidnexus.calibrate.nerf import read_nerf
 from fluidnexus.calibrate.pinf import pinf_dict, read_pinf, source_at_volume_foot
@@ -23,13 +23,6 @@ from fluidnexus.world_frame import SourceFrame
 
 log = logging.getLogger("fluidnexus")
 
-PROTOCOLS = {
-    # the paper's single-video protocol: the middle camera in, the four others synthesised and scored
-    "single-view": Roles(("train02",), ("train00", "train01", "train03", "train04"),
-                         ("train00", "train01", "train03", "train04")),
-    # four real input views, the middle camera held out
-    "four-view": Roles(("train00", "train01", "train03", "train04"), (), ("train02",)),
-}
 MODES = ("from_pinf", "from_nerf", "from_colmap", "images", "video", "sample")
 IMPORTS = ("from_pinf", "from_nerf", "from_colmap")  # modes that read a world in the file's own unit
 

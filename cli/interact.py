@@ -50,7 +50,7 @@ def interact(run_dir: Path, wind, profile, wind_height, ball, mesh_file, from_fr
     from fluidnexus.predict.session import (Interaction, check_new_run, comparison_videos, physics_baseline,
                                             simulate_future)
     from fluidnexus.runs import open_run
-    from fluidnexus.scene_scale import scene_factor
+    from fluidnexus.scene_scale import WIND_HEIGHT
     from fluidnexus.scenery.obstacles import make_obstacle, parse_sphere
 
     limit = parse_limit(max_memory)
@@ -73,7 +73,7 @@ def interact(run_dir: Path, wind, profile, wind_height, ball, mesh_file, from_fr
     if accel is not None:
         scene = run.scene(check_videos=False)
         height = wind_height or (float(scene.volume.max[1] - scene.volume.min[1]) if scene.volume is not None
-                                else 0.5 * scene_factor(scene))
+                                else WIND_HEIGHT * run.length_scale)
         model = with_wind(ctx.model, accel, profile, ctx.source.center[1], height)
         info["wind"] = {"accel": list(accel), "profile": profile, "height": height}
     obstacle = None

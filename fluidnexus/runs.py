@@ -38,6 +38,11 @@ class Run:
         return int(self.config["recon"]["channels"])
 
     @property
+    def length_scale(self) -> float:
+        """The length-scale factor recon sized the run's lengths with (docs/scale.md)."""
+        return float(self.config["recon"]["length_scale"])
+
+    @property
     def dt(self) -> float:
         return float(self.config["solver"]["dt"])
 

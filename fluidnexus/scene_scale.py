@@ -32,6 +32,13 @@ if TYPE_CHECKING:  # the engine (Taichi) is not imported by the commands that on
 SCALARFLOW_BOX = (0.4909, 0.73635, 0.4909)
 SCALARFLOW_SOURCE_RADIUS = 0.025
 
+# Lengths the pipelines use at ScalarFlow's scale (metres); each is multiplied by the scene's factor where used.
+SOURCE_SLAB = 0.01  # recon's source finder: thickness of the slab at the foot of the first frame's hull
+DIAGNOSE_SPACING = 0.02  # diagnose's particle spacing (``diagnose --spacing``)
+PLUME_BOX_BELOW = (0.3, 0.05, 0.3)  # diagnose without a volume: the box from the source down (x, y, z) ...
+PLUME_BOX_ABOVE = (0.3, 0.8, 0.3)  # ... and up
+WIND_HEIGHT = 0.5  # interact --wind without a volume: the height over which a profiled wind grows
+
 
 def _round3(x: float) -> float:
     return float(f"{x:.3g}")

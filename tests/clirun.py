@@ -1,7 +1,7 @@
 """Run ``fluidnexus`` commands in-process for tests."""
 from click.testing import CliRunner
 
-from cli.main import main
+from fluidnexus_cli.main import main
 
 
 def invoke(*args):

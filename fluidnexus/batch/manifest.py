@@ -11,9 +11,9 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..calibrate.assemble import PROTOCOLS
 from ..errors import InputError
-from . import steps as steps_mod
-from .steps import PREPARE, STEPS
+from .steps import NEEDS_RUN, PREPARE, SCENE_SOURCES, STEPS, StepCommands
 
 NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]*$")
 SCENE_KEYS = {"name", "steps", "sample", "protocol", "from_pinf", "input", "novel", "ground_truth", "scene",
@@ -43,8 +43,9 @@ class Manifest:
     scenes: tuple[SceneJob, ...]
 
 
-def load_manifest(path: str | Path) -> Manifest:
-    """Read and check a manifest; relative paths in it are relative to its folder."""
+def load_manifest(path: str | Path, commands: StepCommands) -> Manifest:
+    """Read and check a manifest; relative paths in it are relative to its folder. ``commands`` says what each
+    step's options are (``steps.StepCommands``)."""
     path = Path(path)
     if not path.is_file():
         raise InputError(path, None, "manifest not found")
@@ -66,7 +67,7 @@ def load_manifest(path: str | Path) -> Manifest:
         raise InputError(path, "scene", "expected one [[scene]] table per scene (at least one)")
     scenes, seen = [], {}
     for i, entry in enumerate(entries):
-        job = _scene(path, i, entry, defaults)
+        job = _scene(path, i, entry, defaults, commands)
         if job.name in seen:
             raise InputError(path, f"{_where(i, entry)}.name", f"duplicate name (also scene[{seen[job.name]}])")
         seen[job.name] = i
@@ -85,7 +86,7 @@ def _known(path: Path, where: str, table: dict, known: set[str]) -> None:
             raise InputError(path, f"{where}.{key}", f"unknown key; known: {', '.join(sorted(known))}")
 
 
-def _scene(path: Path, i: int, entry: dict, defaults: dict) -> SceneJob:
+def _scene(path: Path, i: int, entry: dict, defaults: dict, commands: StepCommands) -> SceneJob:
     where = _where(i, entry)
     _known(path, where, entry, SCENE_KEYS)
     name = entry.get("name")
@@ -102,7 +103,7 @@ def _scene(path: Path, i: int, entry: dict, defaults: dict) -> SceneJob:
     if len(set(steps)) != len(steps):
         raise InputError(path, field, "a step is listed twice")
     for s in steps:
-        if s in steps_mod.NEEDS_RUN and "recon" not in steps:
+        if s in NEEDS_RUN and "recon" not in steps:
             raise InputError(path, field, f"{s} needs the reconstruction: add 'recon' to the steps")
     ordered = tuple(s for s in STEPS if s in steps)
     if source["kind"] == "scene" and "calibrate" in entry:
@@ -110,7 +111,7 @@ def _scene(path: Path, i: int, entry: dict, defaults: dict) -> SceneJob:
     options = {}
     for step in (PREPARE, *STEPS):  # every table is checked, also of a step this scene does not run
         key = "calibrate" if step == PREPARE else step
-        tokens = _options(path, where, key, step, defaults.get(key, {}), entry.get(key, {}),
+        tokens = _options(path, where, key, step, defaults.get(key, {}), entry.get(key, {}), commands,
                           check_required=step in ordered)
         if step == PREPARE and source["kind"] != "scene" or step in ordered:
             options[step] = tokens
@@ -118,7 +119,8 @@ def _scene(path: Path, i: int, entry: dict, defaults: dict) -> SceneJob:
     return SceneJob(name, source, ordered, options)
 
 
-def _options(path: Path, where: str, key: str, step: str, default: dict, own: dict, check_required: bool) -> list[str]:
+def _options(path: Path, where: str, key: str, step: str, default: dict, own: dict, commands: StepCommands,
+             check_required: bool) -> list[str]:
     """A step's options: the scene's table over the defaults' table, as command-line tokens."""
     for origin, table in (("defaults", default), (where, own)):
         if not isinstance(table, dict):
@@ -128,10 +130,10 @@ def _options(path: Path, where: str, key: str, step: str, default: dict, own: di
     for name, value in merged.items():
         origin = where if name in own else "defaults"
         try:
-            tokens += steps_mod.option_tokens(step, name, value, path.parent)
+            tokens += commands.option_tokens(step, name, value, path.parent)
         except ValueError as err:
             raise InputError(path, f"{origin}.{key}.{name}", str(err)) from None
-    for name in steps_mod.required(step) if check_required else ():
+    for name in commands.required(step) if check_required else ():
         if name not in merged:
             raise InputError(path, f"{where}.{key}.{name}", f"required by {key}")
     return tokens
@@ -142,7 +144,7 @@ def _source(path: Path, where: str, entry: dict, defaults: dict) -> dict:
     ``{"kind": "scene", "scene"}`` with absolute paths."""
     from ..samples import sample_names
 
-    given = [k for k in steps_mod.SCENE_SOURCES if k in entry]
+    given = [k for k in SCENE_SOURCES if k in entry]
     if len(given) != 1:
         raise InputError(path, f"{where}.{given[1] if given else 'sample'}",
                          "give exactly one of sample, from_pinf, scene")
@@ -161,8 +163,6 @@ def _source(path: Path, where: str, entry: dict, defaults: dict) -> dict:
     if kind == "sample":
         if value not in sample_names():
             raise InputError(path, f"{where}.sample", f"unknown sample {value!r}; known: {', '.join(sample_names())}")
-        from cli.calibrate import PROTOCOLS
-
         protocol = entry.get("protocol", defaults.get("protocol", "single-view"))
         if protocol not in PROTOCOLS:
             field = f"{where}.protocol" if "protocol" in entry else "defaults.protocol"

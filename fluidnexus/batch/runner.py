@@ -15,7 +15,7 @@ from pathlib import Path
 from ..errors import InputError
 from ..progress import progress
 from .manifest import Manifest, SceneJob
-from .steps import PREPARE, Layout
+from .steps import PREPARE, Layout, StepCommands
 from .tasks import PROBE, StepJob, completed, run_step
 
 log = logging.getLogger("fluidnexus")
@@ -90,9 +90,10 @@ def connect(ray, address: str | None) -> dict:
             "resources": ray.cluster_resources()}
 
 
-def run_batch(manifest: Manifest, out: Path, address: str | None, resources: Resources, on_change) -> tuple[
-        list[SceneState], dict]:
-    """Run every scene's remaining steps; ``on_change(states)`` is called after each state change.
+def run_batch(manifest: Manifest, out: Path, address: str | None, resources: Resources, on_change,
+              commands: StepCommands) -> tuple[list[SceneState], dict]:
+    """Run every scene's remaining steps with ``commands``; ``on_change(states)`` is called after each state
+    change.
 
     Returns the scene states and the cluster description. Ray is stopped (a local instance ends) on return.
     """
@@ -106,7 +107,7 @@ def run_batch(manifest: Manifest, out: Path, address: str | None, resources: Res
         _check_resources(cluster["resources"], resources)
         remote = ray.remote(max_calls=1, max_retries=RETRIES, retry_exceptions=True)(run_step).options(
             num_cpus=resources.cpus, num_gpus=resources.gpus)
-        _drive(ray, remote, states, out, probe, resources, on_change)
+        _drive(ray, remote, states, out, probe, resources, on_change, commands)
     finally:
         ray.shutdown()
     return states, cluster
@@ -121,7 +122,8 @@ def _check_resources(available: dict, resources: Resources) -> None:
                                                    f"{available.get('GPU', 0):g}")
 
 
-def _drive(ray, remote, states: list[SceneState], out: Path, probe: str, resources: Resources, on_change) -> None:
+def _drive(ray, remote, states: list[SceneState], out: Path, probe: str, resources: Resources, on_change,
+           commands: StepCommands) -> None:
     from ray.exceptions import RayError
 
     threads = max(1, int(resources.cpus))
@@ -131,7 +133,7 @@ def _drive(ray, remote, states: list[SceneState], out: Path, probe: str, resourc
         step = state.todo[0]
         job = StepJob(str(out), probe, state.job.name, step, state.job.source, state.job.options[step],
                       resources.arch, threads)
-        running[remote.remote(job)] = (state, step)
+        running[remote.remote(job, commands)] = (state, step)
         state.status = "running"
         log.info("%s: %s scheduled", state.job.name, step)
 

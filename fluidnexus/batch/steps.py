@@ -1,9 +1,9 @@
 """One step of one scene as the arguments of the single-scene command that does it.
 
-A batch step runs exactly what ``fluidnexus STEP ...`` runs: the step's click command is called in-process with the
-arguments built here, so a scene of a batch gets the same files as the same commands typed by hand. The manifest's
-options for a step are that command's options (``frames = "0:40"`` is ``--frames 0:40``); the batch sets the
-folders, ``--arch`` and ``--resume`` itself.
+A batch step runs exactly what ``fluidnexus STEP ...`` runs: the step's command is called in-process (through
+:class:`StepCommands`, which the command line provides) with the arguments built here, so a scene of a batch gets
+the same files as the same commands typed by hand. The manifest's options for a step are that command's options
+(``frames = "0:40"`` is ``--frames 0:40``); the batch sets the folders, ``--arch`` and ``--resume`` itself.
 
 Layout of one scene's output folder (``DIR/scenes/NAME``)::
 
@@ -19,83 +19,27 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-
-import click
+from typing import Protocol
 
 PREPARE = "scene"  # the first step of every scene: make its scene folder (``calibrate``, or a copy of a folder)
 STEPS = ("background", "synth", "refine", "recon", "eval", "predict", "diagnose")  # the order they run in
 NEEDS_RUN = ("eval", "predict")  # steps that read the reconstruction run
 SCENE_SOURCES = ("sample", "from_pinf", "scene")
 
-# click parameters that the batch sets for every step (folders, engine, resume)
-_BATCH_SET = {"out", "json_file", "resume", "arch", "overwrite", "to_pinf"}
-# calibrate parameters that the scene entry itself names (its source and view roles)
-_SOURCE_SET = {"from_pinf", "from_nerf", "from_colmap", "images", "video", "sample", "protocol", "input_names",
-               "novel_names", "gt_names", "paths"}
+class StepCommands(Protocol):
+    """What runs the steps: the options a manifest may give each step, and one step's run. The command line
+    provides it (``fluidnexus_cli.batch_steps.CommandSteps``): a step is the ``fluidnexus`` command of its name
+    (``scene`` is ``calibrate``), its options are that command's, and it is called in-process with the arguments
+    :func:`step_args` builds. Ray sends it to the workers by reference."""
 
+    def option_tokens(self, step: str, key: str, value, base: Path) -> list[str]:
+        """Command-line tokens for one manifest option; ValueError with a plain message when it is bad."""
 
-def command(step: str) -> click.Command:
-    """The click command of a step (``scene`` is ``calibrate``)."""
-    from cli.background import background
-    from cli.calibrate import calibrate
-    from cli.diagnose import diagnose
-    from cli.predict import predict
-    from cli.recon import recon
-    from cli.refine import refine
-    from cli.show import evaluate
-    from cli.synth import synth
+    def required(self, step: str) -> list[str]:
+        """Manifest keys the step requires that the batch does not set (e.g. predict's ``frames``)."""
 
-    return {PREPARE: calibrate, "background": background, "synth": synth, "refine": refine, "recon": recon,
-            "eval": evaluate, "predict": predict, "diagnose": diagnose}[step]
-
-
-def settable(step: str) -> dict[str, click.Option]:
-    """The options a manifest may give for ``step``, by manifest key (the long option name, '-' as '_')."""
-    reserved = _BATCH_SET | (_SOURCE_SET if step == PREPARE else set())
-    out = {}
-    for param in command(step).params:
-        if not isinstance(param, click.Option) or param.name in reserved:
-            continue
-        for name in param.opts:
-            if name.startswith("--"):
-                out[name[2:].replace("-", "_")] = param
-    return out
-
-
-def required(step: str) -> list[str]:
-    """Manifest keys the step's command requires that the batch does not set (e.g. predict's ``frames``)."""
-    return sorted(k for k, p in settable(step).items() if p.required)
-
-
-def option_tokens(step: str, key: str, value, base: Path) -> list[str]:
-    """Command-line tokens for one manifest option; raises ValueError with a plain message when it is bad.
-
-    Booleans switch flags (``offload = true``, ``anchor = false`` -> ``--no-anchor``), lists become comma-separated
-    values, paths are taken relative to ``base`` (the manifest's folder).
-    """
-    params = settable(step)
-    if key not in params:
-        raise ValueError(f"unknown option for {step}; known: {', '.join(sorted(params))}")
-    param = params[key]
-    if param.is_flag and not param.count:
-        if not isinstance(value, bool):
-            raise ValueError(f"expected true or false, got {value!r}")
-        if value:
-            return [param.opts[0]]
-        if param.secondary_opts:
-            return [param.secondary_opts[0]]
-        return []
-    if isinstance(value, (bool, dict)) or value == []:
-        raise ValueError(f"expected a value, got {value!r}")
-    text = ",".join(str(v) for v in value) if isinstance(value, list) else str(value)
-    if isinstance(param.type, click.Path):
-        text = str((base / text).resolve())
-    else:
-        try:
-            param.type.convert(text, param, None)
-        except click.BadParameter as err:
-            raise ValueError(err.message) from None
-    return [param.opts[0], text]
+    def run(self, step: str, args: list[str]) -> None:
+        """Run ``step`` with ``args``; bad input is an InputError, a run that stopped on its own a RunError."""
 
 
 @dataclass(frozen=True)

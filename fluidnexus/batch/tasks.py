@@ -1,7 +1,7 @@
 """One step of one scene, as it runs in a Ray worker (or any process that sees the batch folder).
 
 :func:`run_step` checks that the batch folder is the driver's (shared storage), clears what an unfinished earlier
-attempt of the step left where the step cannot continue it, runs the step's command (``recon`` continues from its
+attempt of the step left where the step cannot continue it, runs the step (``recon`` continues from its
 last checkpoint), and writes the step's completion marker last, atomically. A step is complete exactly when its
 marker exists with the same arguments, so a killed driver or worker loses nothing that finished.
 """
@@ -15,11 +15,9 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import click
-
 from ..atomic import read_json, write_json
 from ..errors import InputError, RunError
-from .steps import PREPARE, Layout, command, step_args
+from .steps import PREPARE, Layout, StepCommands, step_args
 
 log = logging.getLogger("fluidnexus")
 PROBE = ".batch-probe"  # a file the driver writes into the batch folder; every task reads it back
@@ -68,7 +66,7 @@ def completed(layout: Layout, step: str, options: list[str]) -> dict | None:
     return data if data.get("options") == options else None
 
 
-def run_step(job: StepJob) -> dict:
+def run_step(job: StepJob, commands: StepCommands) -> dict:
     """Run one step; return ``{"status": "ok", "seconds": ...}`` or ``{"status": "failed", "error": one line}``.
 
     Bad input (and a run that stopped on its own) fails the scene at once; any other exception propagates so that
@@ -90,10 +88,9 @@ def run_step(job: StepJob) -> dict:
             if copy:
                 copy_scene(Path(job.source["scene"]), layout.scene)
             else:
-                command(job.step).main(args=args, prog_name=f"fluidnexus {command(job.step).name}",
-                                       standalone_mode=False)
-        except (InputError, RunError, click.ClickException) as err:
-            message = err.format_message() if isinstance(err, click.ClickException) else str(err)
+                commands.run(job.step, args)
+        except (InputError, RunError) as err:
+            message = str(err)
             log.info("batch: %s %s failed: %s", job.scene, job.step, message)
             return {"status": "failed", "error": f"{job.step}: {message}"}
         seconds = round(time.time() - started, 3)

@@ -46,6 +46,16 @@ class Roles:
         return cls(split(input), split(novel), split(ground_truth))
 
 
+# View roles of the embedded samples' protocols (``calibrate --sample NAME --protocol P``)
+PROTOCOLS = {
+    # the paper's single-video protocol: the middle camera in, the four others synthesised and scored
+    "single-view": Roles(("train02",), ("train00", "train01", "train03", "train04"),
+                         ("train00", "train01", "train03", "train04")),
+    # four real input views, the middle camera held out
+    "four-view": Roles(("train00", "train01", "train03", "train04"), (), ("train02",)),
+}
+
+
 def assign_roles(recordings: dict[str, Recording], roles: Roles, source_file: Path
                  ) -> tuple[list[tuple[View, Path | None]], list[tuple[GroundTruth, Path]]]:
     """Pick the views for each role; errors name ``source_file`` and the option."""

@@ -11,7 +11,7 @@ import numpy as np
 
 from fluidnexus.errors import InputError
 from fluidnexus.scene import load_ground_truth, load_scene
-from fluidnexus.scene_scale import scene_factor
+from fluidnexus.scene_scale import DIAGNOSE_SPACING, PLUME_BOX_ABOVE, PLUME_BOX_BELOW, scene_factor
 from fluidnexus.scenery.world import scene_obstacles
 
 from .emission import emission_window
@@ -104,14 +104,14 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
         raise InputError(None, "candidates", f"each extension once, got {list(candidates)}")
     scene = load_scene(scene_dir)
     factor = scene_factor(scene)
-    spacing = 0.02 * factor if spacing is None else spacing
+    spacing = DIAGNOSE_SPACING * factor if spacing is None else spacing
     observed = load_observed(scene_dir, a, d, height, run_layer(run_dir))
     src = (scene.source.center, scene.source.radius) if scene.source else DEFAULT_SOURCE
     if scene.volume:
         lo, hi = np.asarray(scene.volume.min, float), np.asarray(scene.volume.max, float)
     else:
-        lo = np.asarray(src[0]) - factor * np.array([0.3, 0.05, 0.3])
-        hi = np.asarray(src[0]) + factor * np.array([0.3, 0.8, 0.3])
+        lo = np.asarray(src[0]) - factor * np.array(PLUME_BOX_BELOW)
+        hi = np.asarray(src[0]) + factor * np.array(PLUME_BOX_ABOVE)
     seed = visual_hull(observed, lo, hi, spacing)
     air_seed = visual_hull(observed, lo, hi, spacing * AIR_SPACING)
     obstacles, body = scene_obstacles(scene_dir, run_dir)

@@ -1,8 +1,8 @@
 """Sources and initial states of the gas: the emitter disk, the initial cylinder lattice, stabilisation.
 
-Defaults follow the release's ScalarFlow constants (docs/method-notes.md): source centre (x, z) =
-(0.34, -0.225) at y = 0, physical spacing 0.015 m in a disk of radius 0.09 m, visual spacing 0.00625 m in a
-disk of radius 0.025 m; initial lattice 0.009 m in a cylinder of radius 0.10 m, y in [-0.02, 0.08].
+Defaults follow the FluidNexus release's ScalarFlow constants: source centre (x, z) = (0.34, -0.225) at y = 0,
+physical spacing 0.015 m in a disk of radius 0.09 m, visual spacing 0.00625 m in a disk of radius 0.025 m; initial
+lattice 0.009 m in a cylinder of radius 0.10 m, y in [-0.02, 0.08].
 
 A source points along a unit ``direction`` (default up, +y): its disk is perpendicular to it and the lattices
 built for the default up direction are turned onto it by :func:`orient` (the minimal rotation taking +y to the

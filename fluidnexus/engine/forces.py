@@ -29,8 +29,8 @@ def _vec(theta: ti.template(), off):
     return ti.Vector([theta[off], theta[off + 1], theta[off + 2]])
 
 
-# Neighbour loops take the ``fast`` flag (``ctx.fast`` on the tape) and read p[i], u[i] inside the inner loop
-# on purpose; pbf.py explains both.
+# Neighbour loops take the ``fast`` flag (launched through ``ctx.record_pairs``) and read p[i], u[i] inside the
+# inner loop on purpose; pbf.py explains both.
 
 
 # ---------------------------------------------------------------- buoyancy
@@ -215,10 +215,10 @@ class Vorticity:
 
     def launch(self, ctx, off: int) -> None:
         ws = ctx.workspace
-        ctx.record(accumulate_curl, ctx.fast, ctx.n, ctx.h, ctx.g_coef, ctx.p, ctx.u, ctx.rho, ctx.nbr, ctx.count,
-                   ws["omega"])
-        ctx.record(accumulate_curl_gradient, ctx.fast, ctx.n, ctx.h, ctx.g_coef, ctx.p, ctx.rho, ctx.nbr, ctx.count,
-                   ws["omega"], ws["eta"])
+        ctx.record_pairs(accumulate_curl, ctx.n, ctx.h, ctx.g_coef, ctx.p, ctx.u, ctx.rho, ctx.nbr, ctx.count,
+                         ws["omega"])
+        ctx.record_pairs(accumulate_curl_gradient, ctx.n, ctx.h, ctx.g_coef, ctx.p, ctx.rho, ctx.nbr, ctx.count,
+                         ws["omega"], ws["eta"])
         ctx.record(add_vorticity_force, ctx.n, off, ws["omega"], ws["eta"], ctx.theta, ctx.force)
 
 
@@ -267,6 +267,6 @@ class Viscosity:
 
     def launch(self, ctx, off: int) -> None:
         ws = ctx.workspace
-        ctx.record(accumulate_velocity_smoothing, ctx.fast, ctx.n, ctx.h, ctx.w_coef, ctx.p, ctx.u, ctx.rho, ctx.nbr,
-                   ctx.count, ws["smooth"])
+        ctx.record_pairs(accumulate_velocity_smoothing, ctx.n, ctx.h, ctx.w_coef, ctx.p, ctx.u, ctx.rho, ctx.nbr,
+                         ctx.count, ws["smooth"])
         ctx.record(add_viscosity_force, ctx.n, off, ctx.dt, ws["smooth"], ctx.theta, ctx.force)

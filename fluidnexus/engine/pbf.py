@@ -12,6 +12,9 @@ The two neighbour tables (at p for the external terms, at x^0 for the solver) ar
 non-differentiated kernels and reused by every iteration.
 """
 
+from dataclasses import dataclass
+from typing import Callable
+
 import taichi as ti
 import torch
 
@@ -196,14 +199,32 @@ def update_velocity(n: int, last: int, dt: float, p: ti.template(), x: ti.templa
 # a dynamic loop breaks it); the tape runs ``kernel.grad`` of that form. Both compute the same sums (tests compare
 # both to torch). They read p[i] inside the inner loop on purpose: a local hoisted out of a dynamic inner loop gets
 # wrong adjoints in Taichi 1.7.4 (checked against finite differences).
-FAST = "fast"  # marks the first tape argument of a neighbour-loop kernel
 
 
-class _Context:
-    """What a force term's ``launch`` sees (fields and constants of the current step)."""
+@dataclass(frozen=True)
+class StepContext:
+    """What a force term's ``launch`` sees: the fields and constants of the current step, and the two ways to
+    launch a differentiated kernel (``record``: any kernel; ``record_pairs``: a neighbour-loop kernel that takes the
+    leading ``fast`` flag)."""
 
-    def __init__(self, **kw):
-        self.__dict__.update(kw)
+    n: int
+    dt: float
+    h: float
+    w_coef: float
+    g_coef: float
+    rho0: float
+    p: object
+    u: object
+    age: object
+    smoke: object
+    rho: object
+    force: object
+    theta: object
+    nbr: object
+    count: object
+    workspace: dict
+    record: Callable
+    record_pairs: Callable
 
 
 class PBFSimulator:
@@ -303,21 +324,16 @@ class PBFSimulator:
 
     # ------------------------------------------------------------------ step
     def _record(self, kernel, *args, adjoint=None) -> None:
-        """Launch a differentiated kernel and put its reverse on the tape (a first argument FAST selects the
-        forms).
+        """Launch a differentiated kernel and put its reverse on the tape: ``adjoint`` (a hand-written reverse
+        kernel taking the same arguments) or else ``kernel.grad``."""
+        kernel(*args)
+        self._tape.append((adjoint if adjoint is not None else kernel.grad, args))
 
-        ``adjoint``: a hand-written reverse kernel taking the same arguments (without FAST), run instead of
-        ``kernel.grad``.
-        """
-        fast = bool(args) and args[0] is FAST
-        if fast:
-            kernel(True, *args[1:])
-        else:
-            kernel(*args)
-        if adjoint is not None:
-            self._tape.append((adjoint, args[1:] if fast else args))
-        else:
-            self._tape.append((kernel.grad, (False,) + args[1:] if fast else args))
+    def _record_pairs(self, kernel, *args) -> None:
+        """Launch a neighbour-loop kernel in its fast form and put the ``ti.ad`` reverse of its per-pair form on the
+        tape (the comment above ``StepContext``)."""
+        kernel(True, *args)
+        self._tape.append((kernel.grad, (False,) + args))
 
     def forward(self) -> None:
         """Run one step on the loaded state, recording the reverse of its differentiated kernels for
@@ -334,10 +350,11 @@ class PBFSimulator:
             self._record(accumulate_density, n, h, wc, self.p, self.pre_table.nbr, self.pre_table.count,
                          self.rho_pre, adjoint=density_adjoint)
         for term, off in zip(self.model.terms, self._offsets):
-            ctx = _Context(fast=FAST, n=n, dt=s.dt, h=h, w_coef=wc, g_coef=gc, rho0=s.rest_density, p=self.p, u=self.u,
-                           age=self.age, smoke=self.smoke, rho=self.rho_pre, force=self.force, theta=self.theta,
-                           nbr=self.pre_table.nbr, count=self.pre_table.count, record=self._record,
-                           workspace={name: self._workspaces[(term.kind, name)] for name, _ in term.workspace})
+            ctx = StepContext(n=n, dt=s.dt, h=h, w_coef=wc, g_coef=gc, rho0=s.rest_density, p=self.p, u=self.u,
+                              age=self.age, smoke=self.smoke, rho=self.rho_pre, force=self.force, theta=self.theta,
+                              nbr=self.pre_table.nbr, count=self.pre_table.count,
+                              workspace={name: self._workspaces[(term.kind, name)] for name, _ in term.workspace},
+                              record=self._record, record_pairs=self._record_pairs)
             term.launch(ctx, off)
         self._record(predict, n, s.dt, self.p, self.u, self.force, self.x)
         if self.obstacle is not None:

@@ -160,17 +160,14 @@ class ReconConfig:
             d["frames"] = tuple(d["frames"])
         return cls(**d)
 
-    def with_overrides(self, **values) -> "ReconConfig":
-        """A copy with the given settings changed (command-line values win over file values)."""
-        return replace(self, **{k: v for k, v in values.items() if v is not None})
-
 
 def config_for_scene(scene, values: dict, path=None) -> ReconConfig:
-    """The settings for ``scene``: every length in ``LENGTHS`` is its ScalarFlow default times the scene's
-    length-scale factor; ``values`` (a settings file, the command line) win over that."""
+    """The settings for ``scene``: every length in ``LENGTHS`` is its ScalarFlow default times the length-scale
+    factor (``values["length_scale"]`` when given, else the scene's); ``values`` (a settings file, the command
+    line) win over that."""
     from ..scene_scale import scaled, scene_factor
 
-    factor = scene_factor(scene)
+    factor = float(values["length_scale"]) if values.get("length_scale") is not None else scene_factor(scene)
     defaults = {f.name: f.default for f in fields(ReconConfig)}
     derived = {**scaled({k: defaults[k] for k in LENGTHS}, factor), "length_scale": factor}
     return ReconConfig.from_dict({**derived, **values}, path)

@@ -30,7 +30,7 @@ def recon_estimate(scene, setup, frames: tuple[int, int], n_seeds: int) -> Estim
         for axis in hull_grid(scene.volume, cfg.visual_spacing):
             voxels *= len(axis)
         est.add("visual hull", hull_bytes(voxels, CHUNK_POINTS), "--visual-spacing")
-    physical, visual = capacities(frames[1] - frames[0], setup, scene_source(scene), n_seeds)
+    physical, visual = capacities(frames[1] - frames[0], setup, scene_source(scene, cfg.length_scale), n_seeds)
     est.add("physical particles", physical_bytes(physical, setup.solver.iterations),
             "--physical-spacing / --physical-emit-spacing or --frames")
     est.add("visual particles", visual_bytes(visual, cfg.channels), "--visual-spacing or --frames")

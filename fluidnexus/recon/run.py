@@ -34,6 +34,7 @@ from ..errors import InputError, RunError
 from ..progress import progress
 from ..runs import RUN_FORMAT
 from ..scene import Scene
+from ..scene_scale import SOURCE_SLAB
 from ..state import frame_path, load_frame, save_frame
 from .config import ReconConfig, differing_keys
 from .fit import Views, fit_appearance, fit_dynamics, fit_look, fit_positions
@@ -53,7 +54,8 @@ log = logging.getLogger("fluidnexus")
 def locate_smoke(scene: Scene, obs, cfg: ReconConfig, obstacle=None) -> tuple[FoundSource, np.ndarray]:
     """The inflow (declared, or found in the first frames with smoke: ``source_finder``) and the visual seeds
     from the first frame's visual hull, none inside an obstacle."""
-    found = find_source(scene, obs, cfg.visual_spacing, 0.01 * cfg.length_scale, scene_source(scene), obstacle)
+    found = find_source(scene, obs, cfg.visual_spacing, SOURCE_SLAB * cfg.length_scale,
+                        scene_source(scene, cfg.length_scale), obstacle)
     seeds = initial_visual(found.source, found.hull_points, cfg)
     if obstacle is not None and len(seeds):
         seeds = seeds[obstacle.distance(seeds) > 0]

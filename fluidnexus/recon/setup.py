@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from ..engine import ModelConfig, SolverConfig, cylinder_lattice
 from ..errors import InputError
 from ..scene import SCENE_FILE, Scene, Source
-from ..scene_scale import SCALARFLOW_SOURCE_RADIUS, scaled_solver, scene_factor
+from ..scene_scale import SCALARFLOW_SOURCE_RADIUS, scaled_solver
 from .config import ReconConfig
 from .initial import physical_source, visual_source
 
@@ -31,13 +31,14 @@ def default_setup(scene: Scene, config: ReconConfig, model: ModelConfig | None =
     return RunSetup(config, solver, model or ModelConfig.scalarflow())
 
 
-def scene_source(scene: Scene) -> Source:
-    """The smoke inflow: the scene's ``source``, else the bottom centre of its volume."""
+def scene_source(scene: Scene, length_scale: float) -> Source:
+    """The smoke inflow: the scene's ``source``, else a disk of ScalarFlow's radius times ``length_scale`` at the
+    bottom centre of its volume."""
     if scene.source is not None:
         return scene.source
     if scene.volume is not None:
         return Source(tuple(float(v) for v in scene.volume.bottom_center),
-                      SCALARFLOW_SOURCE_RADIUS * scene_factor(scene))
+                      SCALARFLOW_SOURCE_RADIUS * length_scale)
     raise InputError(scene.root / SCENE_FILE, "source", "the scene has neither a source nor a volume")
 
 

@@ -1,5 +1,5 @@
 """Obstacles found in the footage: opaque static content inside the scene volume, from the static layer
-(issue 16, part 4; docs/static-layer.md).
+(docs/static-layer.md).
 
 1. **Surfaces**: each view renders the static layer's Gaussians inside the volume (``layer.render_static``) with
    their depth; pixels whose alpha is at least ``opaque`` and whose colour differs from the layer's background

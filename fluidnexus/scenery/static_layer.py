@@ -1,5 +1,5 @@
 """The static layer: a set of Gaussians that do not move (backdrop, floor, obstacles), fitted to the views' clean
-plates with the project's splat renderer (issue 16, part 3; docs/static-layer.md).
+plates with the project's splat renderer (docs/static-layer.md).
 
 The fit is a small 3D Gaussian splatting optimisation (Kerbl et al. 2023):
 

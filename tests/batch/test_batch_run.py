@@ -115,7 +115,7 @@ def test_killed_driver_and_worker_lose_no_finished_work(sample_batch, tmp_path):
     out = tmp_path / "out"
     scene = out / "scenes" / "single-view"
     frames = scene / "run" / "frames"
-    cmd = [sys.executable, "-m", "cli", "batch", str(manifest), "--out", str(out), *BATCH_OPTIONS]
+    cmd = [sys.executable, "-m", "fluidnexus_cli", "batch", str(manifest), "--out", str(out), *BATCH_OPTIONS]
     driver = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     started = set()
     try:

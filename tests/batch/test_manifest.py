@@ -6,6 +6,7 @@ import sys
 import pytest
 
 from fluidnexus.batch.manifest import load_manifest
+from fluidnexus_cli.batch_steps import CommandSteps
 
 from .conftest import invoke, sample_scenes, write_manifest
 
@@ -94,11 +95,11 @@ steps = ["recon", "eval"]
 
 
 def test_the_issue_example_reads(tmp_path):
-    """The manifest of issue 17 as written (its PINF capture replaced by a file at the same relative path)."""
+    """The manifest of docs/batch.md's example as written (its PINF capture replaced by a file at the same relative path)."""
     info = tmp_path / "shared" / "data" / "pinf_sphere" / "info.json"
     info.parent.mkdir(parents=True)
     info.write_text("{}")
-    single, four, sphere = load_manifest(write_manifest(tmp_path / "main", ISSUE_EXAMPLE)).scenes
+    single, four, sphere = load_manifest(write_manifest(tmp_path / "main", ISSUE_EXAMPLE), CommandSteps()).scenes
     assert single.steps == ("synth", "refine", "recon", "eval") and four.steps == ("recon", "eval")
     assert single.options["recon"] == four.options["recon"] == ["--frames", "0:40", "--resolution", "0.5"]
     assert single.source == {"kind": "sample", "sample": "scalarflow", "protocol": "single-view"}
@@ -113,7 +114,7 @@ def test_background_is_a_step_before_synth(tmp_path):
     from fluidnexus.batch.steps import Layout, step_args
 
     text = GOOD + sample_scenes("four-view") + 'steps = ["recon", "background"]\nbackground = { resolution = 0.5 }\n'
-    scene = load_manifest(write_manifest(tmp_path, text)).scenes[0]
+    scene = load_manifest(write_manifest(tmp_path, text), CommandSteps()).scenes[0]
     assert scene.steps == ("background", "recon")
     layout = Layout(tmp_path / "out")
     assert step_args("background", scene.source, scene.options["background"], layout, "cpu") == \
@@ -130,11 +131,11 @@ def test_json_manifest(tmp_path):
     path.write_text('{"defaults": {"steps": ["recon"], "recon": {"anchor": true}}, '
                     '"scene": [{"name": "a", "sample": "scalarflow"}]}')
     with pytest.raises(Exception) as err:
-        load_manifest(path)
+        load_manifest(path, CommandSteps())
     assert "defaults.recon.anchor" in str(err.value)
     path.write_text('{"defaults": {"steps": ["recon", "predict"]}, "scene": [{"name": "a", "sample": "scalarflow", '
                     '"predict": {"anchor": false, "frames": 5}}]}')
-    scene = load_manifest(path).scenes[0]
+    scene = load_manifest(path, CommandSteps()).scenes[0]
     assert scene.source == {"kind": "sample", "sample": "scalarflow", "protocol": "single-view"}
     assert scene.options["predict"] == ["--no-anchor", "--frames", "5"]
 
@@ -153,6 +154,6 @@ def test_diagnose_gets_the_tasks_cpus_as_jobs(tmp_path):
     layout = Layout(tmp_path / "out")
     for extra, jobs in (("", "3"), ("diagnose = { jobs = 1 }\n", "1")):
         text = GOOD + sample_scenes("four-view") + 'steps = ["diagnose"]\n' + extra
-        scene = load_manifest(write_manifest(tmp_path, text)).scenes[0]
+        scene = load_manifest(write_manifest(tmp_path, text), CommandSteps()).scenes[0]
         args = step_args("diagnose", scene.source, scene.options["diagnose"], layout, "cpu", cpus=3)
         assert args.count("--jobs") == 1 and args[args.index("--jobs") + 1] == jobs, args

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from cli.main import main
+from fluidnexus_cli.main import main
 from fluidnexus.calibrate.arc import arc_rig
 from fluidnexus.errors import InputError
 from fluidnexus.scene import load_scene

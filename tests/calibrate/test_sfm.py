@@ -256,7 +256,7 @@ def test_calibrate_images_command_writes_a_metric_y_up_scene(rig, tmp_path):
     """`fluidnexus calibrate --images ... --media DIR --scale-distance` end to end."""
     from click.testing import CliRunner
 
-    from cli.main import main
+    from fluidnexus_cli.main import main
     from fluidnexus.scene import load_scene
     from fluidnexus.video import write_video
 
@@ -283,7 +283,7 @@ def test_calibrate_images_command_writes_a_metric_y_up_scene(rig, tmp_path):
 def test_still_images_without_footage_are_refused(rig, tmp_path):
     from click.testing import CliRunner
 
-    from cli.main import main
+    from fluidnexus_cli.main import main
 
     result = CliRunner().invoke(main, ["calibrate", "--images", *map(str, rig["paths"]), "--out", str(tmp_path / "s")])
     assert result.exit_code == 2 and "--media" in result.output

@@ -7,7 +7,7 @@ import pytest
 from click.testing import CliRunner
 
 from clirun import assert_clean_failure
-from cli.main import main
+from fluidnexus_cli.main import main
 from fluidnexus.samples import sample_path
 
 
@@ -126,7 +126,7 @@ def test_bad_scale_distance(tmp_path):
 
 def test_console_script_exit_code(tmp_path):
     """The installed entry point itself: exit 2 and one line on stderr."""
-    proc = subprocess.run([sys.executable, "-m", "cli", "calibrate", "--from-pinf", str(tmp_path / "x.json"),
+    proc = subprocess.run([sys.executable, "-m", "fluidnexus_cli", "calibrate", "--from-pinf", str(tmp_path / "x.json"),
                            "--input", "a", "--out", str(tmp_path / "s")], capture_output=True, text=True)
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [f"error: {tmp_path / 'x.json'}: file not found"]

@@ -4,7 +4,7 @@ from __future__ import annotations
 import pytest
 from click.testing import CliRunner
 
-from cli.main import main
+from fluidnexus_cli.main import main
 
 
 @pytest.fixture(scope="module")

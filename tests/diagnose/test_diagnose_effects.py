@@ -49,7 +49,7 @@ def diagnose_density(template, tmp_path, density: np.ndarray, train: str = TRAIN
     out = tmp_path / "diag"
     # in its own process, as a user runs it: the engine in float32 (the suite's runs in float64, and the wind
     # plume's structure gain sits at the bar: 22.5 % in float32, 19.6 % in float64; docs/diagnose.md)
-    result = subprocess.run([sys.executable, "-m", "cli", "diagnose", str(scene), "--out", str(out),
+    result = subprocess.run([sys.executable, "-m", "fluidnexus_cli", "diagnose", str(scene), "--out", str(out),
                              "--train-frames", train, "--validate-frames", validate, "--evals", str(evals), *FAST],
                             cwd=ROOT, capture_output=True, text=True)
     assert result.returncode == 0, result.stdout + result.stderr

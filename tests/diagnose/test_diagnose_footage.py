@@ -1,4 +1,4 @@
-"""diagnose on footage over a backdrop and around obstacles (issue 16 for diagnose): it sees the smoke's opacity
+"""diagnose on footage over a backdrop and around obstacles: it sees the smoke's opacity
 over each view's plate, leaves out views without a plate, and its plume flows around the scene's obstacles."""
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 from click.testing import CliRunner
 
-from cli.main import main
+from fluidnexus_cli.main import main
 from fluidnexus.diagnose.footage import run_layer
 from fluidnexus.diagnose.plume import PlumeParams, PlumeSetup, PlumeSimulator
 from fluidnexus.diagnose.run import load_observed

@@ -9,7 +9,7 @@ import pytest
 
 from click.testing import CliRunner
 
-from cli.main import main
+from fluidnexus_cli.main import main
 from fluidnexus.diagnose.parallel import MAX_JOBS, plan_jobs
 from fluidnexus.memory import RUNTIME_BYTES
 

@@ -3,7 +3,7 @@ import json
 
 from click.testing import CliRunner
 
-from cli.main import main
+from fluidnexus_cli.main import main
 from fluidnexus.calibrate.pinf import read_pinf, source_at_volume_foot
 from fluidnexus.samples import sample_path
 from fluidnexus.scene import Scene, View, load_scene, save_scene
@@ -66,7 +66,7 @@ def test_registries_import_nothing_heavy():
     import sys
 
     code = ("import sys, fluidnexus.gen.synthesizer, fluidnexus.gen.refiner, fluidnexus.gen.weights, "
-            "fluidnexus.metrics, cli.synth, cli.refine; "
+            "fluidnexus.metrics, fluidnexus_cli.synth, fluidnexus_cli.refine; "
             "print(sorted(m for m in ('torch', 'diffusers', 'transformers') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"

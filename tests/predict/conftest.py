@@ -26,7 +26,7 @@ def start_run(tmp_path_factory, ti_engine):
     scene = load_scene(scene_dir)
     cfg = ReconConfig(frames=(0, 1), resolution=0.25, stabilization_steps=3, dynamics_iters=2, appearance_iters=2)
     setup = default_setup(scene, cfg)
-    source = scene_source(scene)
+    source = scene_source(scene, setup.config.length_scale)
     seeds = initial_visual(source, np.zeros((0, 3)), cfg)
     ws = Workspace(*capacities(1, setup, source, len(seeds)), setup.solver, setup.model)
     smoke = initial_smoke(source, seeds, cfg, ws, 0)

@@ -76,7 +76,7 @@ def test_estimate_grows_with_the_settings(four_view_scene):
 # high-water mark of the process it was forked from (here the test session, gigabytes by then) across exec.
 PEAK = """
 import json, sys
-from cli.main import main
+from fluidnexus_cli.main import main
 try:
     main(sys.argv[1:], standalone_mode=False)
 finally:

@@ -7,7 +7,7 @@ import numpy as np
 import torch
 from click.testing import CliRunner
 
-from cli.main import main
+from fluidnexus_cli.main import main
 from fluidnexus.recon.config import ReconConfig
 
 
