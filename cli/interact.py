@@ -6,10 +6,8 @@ from pathlib import Path
 
 import click
 
-from fluidnexus.errors import InputError
-
 from .options import arch_option, max_memory_option, start_engine
-from .predict import check_frames, future_context, make_refiner, model_options, refine_options
+from .predict import model_options, refine_options
 
 log = logging.getLogger("fluidnexus")
 
@@ -46,41 +44,15 @@ def interact(run_dir: Path, wind, profile, wind_height, ball, mesh_file, from_fr
     fluidnexus interact runs/sf --mesh bunny.obj --frames 30 --out runs/sf-bunny --no-refit
     """
     from fluidnexus.memory import parse_limit
-    from fluidnexus.predict.rollout import parse_wind, with_wind
-    from fluidnexus.predict.session import (Interaction, check_new_run, comparison_videos, physics_baseline,
-                                            simulate_future)
+    from fluidnexus.predict.future import Future, InteractionRequest, future_refiner, interact_run
     from fluidnexus.runs import open_run
-    from fluidnexus.scene_scale import WIND_HEIGHT
-    from fluidnexus.scenery.obstacles import make_obstacle, parse_sphere
 
     limit = parse_limit(max_memory)
-    check_frames(frames)
-    check_new_run(out)
-    if wind is None and ball is None and mesh_file is None:
-        raise InputError(None, "--wind/--ball/--mesh", "give at least one interaction")
-    if ball is not None and mesh_file is not None:
-        raise InputError(None, "--ball/--mesh", "give one obstacle, not both")
-    accel = parse_wind(wind) if wind is not None else None
-    if ball is not None:
-        parse_sphere(ball, "--ball", "CX,CY,CZ,R in metres")
-    if wind_height is not None and not wind_height > 0:
-        raise InputError(None, "--wind-height", f"must be > 0, got {wind_height}")
+    future = Future(frames, from_frame, model_file, calibrate, calibrate_window, anchor)
+    future.check(out)
+    request = InteractionRequest.parse(wind, profile, wind_height, ball, mesh_file)
     run = open_run(run_dir)
-    refiner = make_refiner(method, no_refit, weights, lora, strength, steps, seed, offload, device)
+    refiner = future_refiner(method, no_refit, weights, lora, strength, steps, seed, offload, device)
     start_engine(arch)
-    ctx, notes = future_context(run, from_frame, model_file, calibrate, calibrate_window)
-    info, model = {}, None
-    if accel is not None:
-        scene = run.scene(check_videos=False)
-        height = wind_height or (float(scene.volume.max[1] - scene.volume.min[1]) if scene.volume is not None
-                                else WIND_HEIGHT * run.length_scale)
-        model = with_wind(ctx.model, accel, profile, ctx.source.center[1], height)
-        info["wind"] = {"accel": list(accel), "profile": profile, "height": height}
-    obstacle = None
-    if ball is not None or mesh_file is not None:
-        obstacle, info["obstacle"] = make_obstacle(ball, mesh_file)
-    _, with_ = simulate_future(run, out, "interact", frames, Interaction(model, obstacle, info), refiner, from_frame,
-                               ctx, notes, anchor, limit)
-    without = physics_baseline(run, frames, from_frame, ctx)
-    for path in comparison_videos(run, out, without, with_, obstacle):
+    for path in interact_run(run, out, future, request, refiner, limit):
         log.info("wrote %s", path)

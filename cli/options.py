@@ -1,8 +1,6 @@
 """Options shared by several commands."""
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import click
 import numpy as np
 
@@ -33,41 +31,6 @@ def start_engine(arch: str) -> str:
     except RuntimeError as err:  # e.g. --arch cuda on a machine without a usable GPU
         raise InputError(None, "--arch", f"cannot start the engine on {resolved}: {err}") from None
     return resolved
-
-
-@dataclass(frozen=True)
-class ModelFile:
-    """A model.json: the engine model, and the source's emission window [A, B) in scene frames that diagnose found
-    or read (``source.window``; B None: to the end; None: the file records none)."""
-
-    model: object  # engine.ModelConfig (the engine is imported when a command starts it)
-    window: tuple[int, int | None] | None
-
-
-def load_model_file(path, ambient_air: bool) -> ModelFile | None:
-    """The model.json at ``path`` (``fluidnexus diagnose`` writes one), or None without a path.
-
-    ``ambient_air``: whether the command simulates the gas in ambient air (predict, interact); recon does not
-    (docs/simulator.md, "Model structures") and refuses such a model.
-    """
-    if path is None:
-        return None
-    from fluidnexus.atomic import read_json
-    from fluidnexus.engine import ModelConfig
-    from fluidnexus.scene import parse_window
-
-    data = read_json(path, "model file")
-    try:
-        model = ModelConfig.from_dict(data.get("model", {}))
-    except (OSError, ValueError, TypeError, KeyError) as err:
-        raise InputError(path, "model", str(err)) from None
-    if model.air is not None and not ambient_air:
-        raise InputError(path, "model.structure", "recon fits the paper's gas; this model is the gas in ambient air "
-                         "(ambient_air), which predict and interact simulate: reconstruct without it and pass it "
-                         "to predict or interact")
-    source = data.get("source")
-    window = parse_window(source.get("window"), path, "source.window") if isinstance(source, dict) else None
-    return ModelFile(model, window)
 
 
 def parse_color(text: str | None, option: str) -> np.ndarray | None:

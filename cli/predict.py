@@ -1,17 +1,11 @@
 """``fluidnexus predict``: what the smoke does next (FluidNexus Sec. 3.3, Alg. S2; docs/prediction.md)."""
 from __future__ import annotations
 
-import dataclasses
-import logging
 from pathlib import Path
 
 import click
 
-from fluidnexus.errors import InputError
-
-from .options import arch_option, load_model_file, max_memory_option, start_engine
-
-log = logging.getLogger("fluidnexus")
+from .options import arch_option, max_memory_option, start_engine
 
 
 def refine_options(func):
@@ -37,23 +31,6 @@ def refine_options(func):
     return func
 
 
-def make_refiner(method, no_refit, weights, lora, strength, steps, seed, offload, device):
-    """The refiner chosen on the command line, or None with --no-refit."""
-    if no_refit:
-        return None
-    from fluidnexus.gen.refiner import make_refiner as build
-
-    if method == "cogvideox":
-        from fluidnexus.gen.cogvideox import DEFAULT_PROMPT, CogVideoXConfig
-
-        if not 0 < strength <= 1:
-            raise InputError(None, "--strength", f"must be in (0, 1], got {strength}")
-        config = CogVideoXConfig(strength=strength, steps=steps, prompt=DEFAULT_PROMPT, prompt_embeds=None, seed=seed,
-                                 device=None if device == "auto" else device, offload=offload)
-        return build(method, weights=weights, lora=lora, config=config)
-    return build(method)
-
-
 def model_options(func):
     """--model and --calibrate, shared by ``predict`` and ``interact``: the future's base model."""
     options = [
@@ -67,34 +44,6 @@ def model_options(func):
     for option in reversed(options):
         func = option(func)
     return func
-
-
-def future_context(run, first, model_file, calibrate: bool, window: int):
-    """(RunContext with the future's base model, run.json notes): --model, then the backtest calibration."""
-    from fluidnexus.predict.calibrate import calibrate as backtest
-    from fluidnexus.predict.rollout import RunContext
-    from fluidnexus.predict.session import start_frame
-
-    ctx = RunContext.of(run)
-    loaded = load_model_file(model_file, ambient_air=True)
-    notes = {"model_file": None if model_file is None else str(Path(model_file).resolve()), "calibration": None}
-    if loaded is not None:
-        ctx = dataclasses.replace(ctx, model=loaded.model)
-        if loaded.window is not None and ctx.source.window is None:  # a window the scene declares wins
-            ctx = dataclasses.replace(ctx, source=dataclasses.replace(ctx.source, window=loaded.window))
-            log.info("the source emits in frames [%d, %s) only (the model file's window)", loaded.window[0],
-                     "end" if loaded.window[1] is None else loaded.window[1])
-    if calibrate:
-        result = backtest(run, ctx, start_frame(run, first), window)
-        if result is not None:
-            ctx = dataclasses.replace(ctx, model=result.model)
-            notes["calibration"] = result.to_dict()
-    return ctx, notes
-
-
-def check_frames(frames: int) -> None:
-    if frames <= 0:
-        raise InputError(None, "--frames", f"must be > 0, got {frames}")
 
 
 @click.command()
@@ -117,14 +66,13 @@ def predict(run_dir: Path, frames: int, out: Path, from_frame, model_file, calib
     fluidnexus predict runs/sf --from 89 --frames 30 --out runs/sf-check --model diag/model.json
     """
     from fluidnexus.memory import parse_limit
-    from fluidnexus.predict.session import Interaction, check_new_run, simulate_future
+    from fluidnexus.predict.future import Future, future_refiner, predict_run
     from fluidnexus.runs import open_run
 
     limit = parse_limit(max_memory)
-    check_frames(frames)
-    check_new_run(out)
+    future = Future(frames, from_frame, model_file, calibrate, calibrate_window, anchor)
+    future.check(out)
     run = open_run(run_dir)
-    refiner = make_refiner(method, no_refit, weights, lora, strength, steps, seed, offload, device)
+    refiner = future_refiner(method, no_refit, weights, lora, strength, steps, seed, offload, device)
     start_engine(arch)
-    ctx, notes = future_context(run, from_frame, model_file, calibrate, calibrate_window)
-    simulate_future(run, out, "predict", frames, Interaction(), refiner, from_frame, ctx, notes, anchor, limit)
+    predict_run(run, out, future, refiner, limit)

@@ -11,7 +11,7 @@ from fluidnexus.atomic import read_json
 from fluidnexus.scene import load_scene
 from fluidnexus.video import parse_frame_range
 
-from .options import arch_option, load_model_file, max_memory_option, start_engine
+from .options import arch_option, max_memory_option, start_engine
 
 log = logging.getLogger("fluidnexus")
 SPECIAL = {"frames", "channels", "resolution"}
@@ -56,10 +56,11 @@ def recon(scene_dir: Path, out: Path, frames_text, resolution, channels, config_
           arch, **settings) -> None:
     """Reconstruct physical and visual particles of SCENE_DIR frame by frame (FluidNexus Alg. S1)."""
     from fluidnexus.memory import parse_limit
+    from fluidnexus.model_file import load_model_file
     from fluidnexus.recon.config import config_for_scene
     from fluidnexus.recon.run import reconstruct
     from fluidnexus.recon.setup import default_setup
-    from fluidnexus.working_resolution import working_scale
+    from fluidnexus.working_resolution import resolve_resolution
 
     limit = parse_limit(max_memory)
     scene = load_scene(scene_dir)
@@ -68,7 +69,7 @@ def recon(scene_dir: Path, out: Path, frames_text, resolution, channels, config_
     if frames_text is not None:
         rng = parse_frame_range(frames_text)
         values["frames"] = (rng.start or 0, rng.stop)
-    values["resolution"] = working_scale(resolution, scene)
+    values["resolution"] = resolve_resolution(resolution, scene)
     values["channels"] = 1 if channels == "gray" else 3
     cfg = config_for_scene(scene, values, config_file)  # lengths follow the scene's size unless given
     loaded = load_model_file(model_file, ambient_air=False)  # its physics only: recon emits as the scene says

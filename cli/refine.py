@@ -39,7 +39,7 @@ def refine(scene_dir: Path, method: str, weights: Path | None, lora: Path | None
     """
     from fluidnexus.gen.novel_views import refine_views
     from fluidnexus.memory import parse_limit
-    from fluidnexus.working_resolution import working_scale
+    from fluidnexus.working_resolution import resolve_resolution
 
     limit = parse_limit(max_memory)
     scene = load_scene(scene_dir)
@@ -51,4 +51,4 @@ def refine(scene_dir: Path, method: str, weights: Path | None, lora: Path | None
                                  prompt_embeds=None if prompt_embeds is None else str(prompt_embeds), seed=seed,
                                  device=None if device == "auto" else device, offload=offload)
         options = {"weights": weights, "lora": lora, "config": config}
-    refine_views(scene, method, options, working_scale(resolution, scene), limit)
+    refine_views(scene, method, options, resolve_resolution(resolution, scene), limit)

@@ -46,7 +46,7 @@ def synth(scene_dir: Path, method: str, weights: Path | None, input_name: str | 
     from fluidnexus.gen.novel_views import synthesis_source, synthesize_views
     from fluidnexus.memory import parse_limit
     from fluidnexus.scene_scale import scene_factor
-    from fluidnexus.working_resolution import working_scale
+    from fluidnexus.working_resolution import resolve_resolution
 
     limit = parse_limit(max_memory)
     known_color = parse_color(smoke_color, "--smoke-color")
@@ -61,4 +61,4 @@ def synth(scene_dir: Path, method: str, weights: Path | None, input_name: str | 
         from fluidnexus.gen.axisym import AxisymConfig
 
         options = {"config": AxisymConfig().scaled(scene_factor(scene))}
-    synthesize_views(scene, method, options, working_scale(resolution, scene), source, known_color, limit)
+    synthesize_views(scene, method, options, resolve_resolution(resolution, scene), source, known_color, limit)

@@ -6,7 +6,7 @@ from .errors import InputError
 AUTO_LONG_SIDE = 480  # pixels: ``auto`` shrinks a camera's long side to at most this
 
 
-def working_scale(text: str, scene) -> float:
+def resolve_resolution(text: str, scene) -> float:
     """``--resolution``: a number (the scale of the scene's videos) or ``auto``, the long side of the first view's
     camera at most 480 px (0.25 for 1080 x 1920 captures, 1.0 for the embedded sample)."""
     if text == "auto":

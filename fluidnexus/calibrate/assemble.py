@@ -8,12 +8,11 @@ from pathlib import Path
 
 import numpy as np
 
-from fluidnexus.scenery.obstacles import place_obstacles
-
 from ..atomic import atomic_dir
 from ..camera import Camera
 from ..errors import InputError
 from ..scene import GroundTruth, Scene, Source, View, Volume, load_ground_truth, load_scene, save_scene
+from ..scenery.obstacles import place_obstacles
 from ..world_frame import SourceFrame
 
 

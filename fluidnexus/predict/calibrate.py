@@ -20,8 +20,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from fluidnexus.scenery.backdrop import run_backdrop
-
 from ..engine import ModelConfig
 from ..engine.tensors import torch_dtype
 from ..frames import render_state
@@ -29,6 +27,7 @@ from ..metrics import psnr
 from ..progress import progress
 from ..recon.smoke import Smoke
 from ..runs import Run
+from ..scenery.backdrop import run_backdrop
 from ..video import read_video
 from .rollout import RunContext, rollout, workspace_for
 

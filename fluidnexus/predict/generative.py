@@ -13,9 +13,6 @@ from typing import Iterator
 import numpy as np
 import torch
 
-from fluidnexus.scenery.backdrop import Behind
-from fluidnexus.scenery.obstacles import join
-
 from ..camera import Camera
 from ..frames import render_state
 from ..progress import progress
@@ -23,6 +20,8 @@ from ..recon.fit import Views, fit_appearance, fit_dynamics
 from ..recon.initial import emit, frame_generator
 from ..recon.smoke import Smoke
 from ..recon.workspace import Workspace
+from ..scenery.backdrop import Behind
+from ..scenery.obstacles import join
 from .rollout import RunContext, constant_appearance, inflow_look
 
 

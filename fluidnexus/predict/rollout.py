@@ -14,8 +14,6 @@ from typing import Iterator
 import numpy as np
 import torch
 
-from fluidnexus.scenery.obstacles import join
-
 from .. import engine
 from ..engine import ModelConfig, SolverConfig, Wind
 from ..errors import InputError
@@ -25,6 +23,7 @@ from ..recon.smoke import Smoke
 from ..recon.workspace import Workspace
 from ..runs import Run
 from ..scene import Source
+from ..scenery.obstacles import join
 from .air import air_capacity, air_rollout
 
 WIND_PROFILES = {"uniform": "constant", "height": "ramp"}

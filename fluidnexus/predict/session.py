@@ -14,8 +14,6 @@ from pathlib import Path
 
 import numpy as np
 
-from fluidnexus.scenery.backdrop import run_backdrop
-
 from .. import memory
 from ..atomic import write_json
 from ..camera import Camera
@@ -25,6 +23,7 @@ from ..frames import side_by_side
 from ..progress import track
 from ..recon.smoke import Smoke
 from ..runs import RUN_FORMAT, Run
+from ..scenery.backdrop import run_backdrop
 from ..state import frame_path, save_frame
 from ..video import write_video
 from .anchor import anchor_videos, known_frames

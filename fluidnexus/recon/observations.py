@@ -5,11 +5,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from fluidnexus.scenery.backdrop import Backdrop, Behind, scene_backdrop
-
 from ..camera import Camera
 from ..errors import InputError
 from ..scene import SCENE_FILE, Scene
+from ..scenery.backdrop import Backdrop, Behind, scene_backdrop
 from ..video import read_video
 
 

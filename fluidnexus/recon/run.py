@@ -23,10 +23,6 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from fluidnexus.scenery.backdrop import scene_backdrop
-from fluidnexus.scenery.static_layer import STATIC_FILE, save_static
-from fluidnexus.scenery.world import declared_scenery, fit_scenery
-
 from .. import engine, memory
 from ..atomic import read_json, write_json
 from ..engine.tensors import torch_dtype
@@ -35,6 +31,9 @@ from ..progress import progress
 from ..runs import RUN_FORMAT
 from ..scene import Scene
 from ..scene_scale import SOURCE_SLAB
+from ..scenery.backdrop import scene_backdrop
+from ..scenery.static_layer import STATIC_FILE, save_static
+from ..scenery.world import declared_scenery, fit_scenery
 from ..state import frame_path, load_frame, save_frame
 from .config import ReconConfig, differing_keys
 from .fit import Views, fit_appearance, fit_dynamics, fit_look, fit_positions
