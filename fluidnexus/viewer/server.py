@@ -53,7 +53,7 @@ def check_port(host: str, port: int) -> None:
             probe.bind(address)
         except OSError as err:
             raise InputError(None, "--port", f"cannot listen on {host}:{port} ({err.strerror}); "
-                                             "is another viewer running? pick another --port") from None
+                                             "pick another --port") from None
 
 
 PARTS = ("frusta", "scenery", "static")  # scene-tree groups of a run that the panel shows or hides
@@ -341,8 +341,8 @@ def open_viewer(run_paths: list, host: str = "127.0.0.1", port: int = 8080) -> S
         InputError: a folder is not a run, viser is missing, or ``host:port`` cannot be listened on.
     """
     runs = [RunContent.open(p) for p in run_paths]
-    viser = require_viser()
     check_port(host, port)
+    viser = require_viser()
     server = viser.ViserServer(host=host, port=port, verbose=False)
     if server.get_port() != port:  # viser moves on to the next free port; we said which one we would use
         server.stop()
