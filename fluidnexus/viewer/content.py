@@ -32,8 +32,8 @@ class Splats:
 
 
 def quat_to_matrix(q: np.ndarray) -> np.ndarray:
-    """[N, 4] unit quaternions (w, x, y, z) -> [N, 3, 3] rotation matrices (body to world)."""
-    q = np.asarray(q, np.float64)
+    """[N, 4] unit quaternions (w, x, y, z) -> [N, 3, 3] rotation matrices (body to world), in q's float type."""
+    q = np.asarray(q)
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     return np.stack([
@@ -70,9 +70,8 @@ def gaussian_splats(positions, colors, scales, rotations, opacities) -> Splats:
         positions: [N, 3] centres, m. colors: [N, C] in [0, 1], C = 1 or 3. scales: [N, 3] standard deviations, m.
         rotations: [N, 4] quaternions (w, x, y, z), body to world. opacities: [N] in [0, 1].
     """
-    R = quat_to_matrix(rotations)
-    s2 = np.square(np.asarray(scales, np.float64))
-    cov = np.einsum("nij,nj,nkj->nik", R, s2, R)
+    M = quat_to_matrix(np.asarray(rotations, np.float32)) * np.asarray(scales, np.float32)[:, None, :]  # R diag(s)
+    cov = M @ M.transpose(0, 2, 1)
     colors = np.asarray(colors, np.float32)
     rgbs = np.repeat(colors, 3, axis=1) if colors.shape[1] == 1 else colors
     return Splats(np.asarray(positions, np.float32), cov.astype(np.float32), np.clip(rgbs, 0, 1),

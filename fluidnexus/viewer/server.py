@@ -98,7 +98,9 @@ class Viewer:
         server.gui.configure_theme(dark_mode=True, show_share_button=False)
         center = 0.5 * (self.lo + self.hi)
         inputs = [m for m in self.marks[0] if m.role == "input"]
-        eye = inputs[0].camera.center if inputs else center + np.array([0, 0, 2.5 * self.size])
+        toward = inputs[0].camera.center - center if inputs else np.array([0.0, 0.0, 1.0])
+        toward = np.array([toward[0], 0.0, toward[2]]) / max(np.hypot(toward[0], toward[2]), 1e-9)
+        eye = center + self.size * (2.2 * toward + np.array([0.0, 0.6, 0.0]))  # behind the first input camera, above
         server.initial_camera.position = tuple(eye)
         server.initial_camera.look_at = tuple(center)
         server.initial_camera.up = (0.0, 1.0, 0.0)

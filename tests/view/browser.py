@@ -81,7 +81,14 @@ class Chromium:
         """The page as [H, W, 3] uint8 RGB."""
         import cv2
 
-        data = base64.b64decode(self.call("Page.captureScreenshot", format="png")["data"])
+        for attempt in range(10):  # right after a navigation the page may be between documents
+            try:
+                data = base64.b64decode(self.call("Page.captureScreenshot", format="png")["data"])
+                break
+            except RuntimeError as err:
+                if "Not attached" not in str(err) or attempt == 9:
+                    raise
+                time.sleep(0.5)
         bgr = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
         return bgr[:, :, ::-1].copy()
 
