@@ -38,6 +38,7 @@ from handmade_run import write_run  # noqa: E402
 from view.browser import Chromium  # noqa: E402
 
 WIDTH, HEIGHT = 1280, 720
+PANEL_SHOWN = "!!document.body && document.body.innerText.includes('frame 0 (t')"  # the status line of the panel
 
 
 def plume_states(volume_min, volume_max, frames: int, visual: int, physical: int, seed: int = 0):
@@ -97,7 +98,7 @@ def first_frame(run: Path, port: int) -> dict:
             connected = None
             while True:
                 shot = browser.screenshot()
-                if connected is None and browser.evaluate("!!document.body && document.body.innerText.includes('frame 0 (t')"):
+                if connected is None and browser.evaluate(PANEL_SHOWN):
                     connected = time.perf_counter() - start
                 if connected is not None and smoke_drawn(shot):  # (a blank page is white too)
                     drawn = time.perf_counter() - start

@@ -18,8 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from .content import (ROLE_COLORS, box_segments, disk_mesh, frustum_pose, gaussian_splats, speed_colors,
-                      state_splats)
+from .content import ROLE_COLORS, box_segments, disk_mesh, frustum_pose, gaussian_splats, speed_colors, state_splats
 from .sources import Body, RunContent, Thumbnails
 
 log = logging.getLogger("fluidnexus")
@@ -92,6 +91,8 @@ class Viewer:
         self.lo, self.hi = self._extent(runs[0])
         self.size = float(np.max(self.hi - self.lo))
         self.marks = [r.cameras() for r in runs]
+        self.static = [None] * len(runs)  # the static layers' splat handles, once read
+        self.static_loaded = threading.Event()
         self.thumbnails = [Thumbnails(m, on_ready=self._thumbnail_ready) for m in self.marks]
         server.scene.set_up_direction("+y")
         server.scene.set_background_image(np.zeros((8, 8, 3), np.uint8))
@@ -206,18 +207,25 @@ class Viewer:
 
     def _load_static_layers(self) -> None:
         """The static layers (RUN/static.npz), read in the background: reading one loads the engine's modules."""
-        for i, run in enumerate(self.runs):
-            path = run.static_layer_file()
-            if path is None:
-                continue
-            from ..static import load_static
+        try:
+            for i, run in enumerate(self.runs):
+                path = run.static_layer_file()
+                if path is None:
+                    continue
+                from ..static import load_static
 
-            layer = load_static(path)
-            splats = gaussian_splats(layer.means, layer.colors, layer.scales, layer.quats, layer.opacities)
-            with self._lock:
-                self.server.scene.add_gaussian_splats(f"/run{i}/static/splats", splats.centers,
-                                                      splats.covariances, splats.rgbs, splats.opacities)
-            log.info("viewer: static layer of %s (%d Gaussians)", run.name, len(splats))
+                try:
+                    layer = load_static(path)
+                except InputError as err:
+                    log.warning("viewer: static layer not shown (%s)", err)
+                    continue
+                splats = gaussian_splats(layer.means, layer.colors, layer.scales, layer.quats, layer.opacities)
+                with self._lock:
+                    self.static[i] = self.server.scene.add_gaussian_splats(
+                        f"/run{i}/static/splats", splats.centers, splats.covariances, splats.rgbs, splats.opacities)
+                log.info("viewer: static layer of %s (%d Gaussians)", run.name, len(splats))
+        finally:
+            self.static_loaded.set()
 
     # ---- time ---------------------------------------------------------------------------------------------------
     def show(self, t: int | None, force: bool = False) -> None:

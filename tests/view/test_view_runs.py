@@ -96,3 +96,31 @@ def test_frusta_show_their_videos_frame_at_the_slider(tmp_path, make_video):
         assert np.abs(expected[3] - expected[0]).max() > 0.1  # the frames differ, so the check can fail
     finally:
         served.stop()
+
+
+def test_the_static_layer_is_shown_once_read(tmp_path):
+    pytest.importorskip("viser", reason="viser is not installed (pip install 'fluidnexus[view]')")
+    from fluidnexus.static import STATIC_FILE, StaticLayer, save_static
+    from fluidnexus.viewer import open_viewer
+    from fluidnexus.viewer.sources import STATIC_LAYER_FILE
+
+    assert STATIC_LAYER_FILE == STATIC_FILE
+    scene = write_scene(tmp_path / "scene", [("front", "input", ring_camera(0), None)])
+    run = write_run(tmp_path / "run", scene, [tiny_state(0)], h=0.1, dt=1 / 25)
+    n = 5
+    save_static(run, StaticLayer(np.zeros((n, 3), np.float32), np.full((n, 3), 0.1, np.float32),
+                                 np.tile([1.0, 0, 0, 0], (n, 1)).astype(np.float32), np.full(n, 0.5, np.float32),
+                                 np.full((n, 1), 0.3, np.float32), np.zeros(1, np.float32),
+                                 {"volume": [[0] * 3, [1] * 3]}))
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    served = open_viewer([run], port=port)
+    try:
+        assert served.viewer.static_loaded.wait(60)
+        handle = served.viewer.static[0]
+        assert handle is not None and handle.buffer.shape == (n, 8)
+        served.viewer.static_on.value = False
+        assert not served.viewer.nodes[0].parts["static"].visible
+    finally:
+        served.stop()
