@@ -7,8 +7,8 @@ import click
 
 
 @click.command()
-@click.argument("run_dir", type=click.Path(path_type=Path))
-@click.argument("run2", required=False, type=click.Path(path_type=Path))
+@click.argument("run_dir", metavar="RUN", type=click.Path(path_type=Path))
+@click.argument("run2", metavar="[RUN2]", required=False, type=click.Path(path_type=Path))
 @click.option("--port", type=int, default=8080, show_default=True, help="Port of the viewer's web page.")
 @click.option("--host", default="127.0.0.1", show_default=True,
               help="Address to listen on: 127.0.0.1 is this machine only; 0.0.0.0 shares it with the network.")

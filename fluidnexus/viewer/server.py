@@ -181,14 +181,13 @@ class Viewer:
                 thickness=0.004 * self.size, color=ROLE_COLORS[mark.role], wxyz=pose.wxyz, position=pose.position)
             scene.add_label(f"{sc}/frusta/{mark.name}/label", f"{mark.name} ({mark.role})", position=(0.0, 0.0, 0.0))
         self.nodes[i].frusta = frusta
-        if run.scene.source is not None:
-            src = run.scene.source
+        src = run.source()
+        if src is not None:
             vertices, faces = disk_mesh(src.center, src.radius, src.direction)
             scene.add_mesh_simple(f"{sc}/scenery/source", vertices, faces, color=SOURCE_COLOR, opacity=0.6)
+            scene.add_label(f"{sc}/scenery/source_label", "source", position=tuple(src.center))
         for k, body in enumerate(run.bodies()):
             self._add_body(f"{sc}/scenery/obstacle{k}", body)
-        if run.scene.source is not None:
-            scene.add_label(f"{sc}/scenery/source_label", "source", position=tuple(run.scene.source.center))
         if run.scene.volume is not None:
             segments = box_segments(run.scene.volume.min, run.scene.volume.max)
             scene.add_line_segments(f"{sc}/scenery/volume", segments, colors=(90, 90, 90),

@@ -85,6 +85,18 @@ class RunContent:
                 self._cache.popitem(last=False)
         return state
 
+    def source(self):
+        """The inflow the run used (run.json ``source``: declared, or found in the footage), else the scene's."""
+        from ..scene import Source
+
+        recorded = self.run.info.get("source")
+        if recorded:
+            try:
+                return Source.from_dict(recorded, self.run.root / "run.json")
+            except (InputError, KeyError, TypeError):
+                log.warning("viewer: run.json's source is unreadable; showing the scene's")
+        return self.scene.source
+
     def parent(self) -> Run | None:
         """The run a ``predict`` / ``interact`` run continues (None for a recon run or a parent that is gone)."""
         parent = self.run.info.get("parent")

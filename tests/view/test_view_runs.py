@@ -24,6 +24,7 @@ def two_runs(tmp_path):
     recon = write_run(tmp_path / "recon", scene, [tiny_state(t) for t in range(4)], h=0.1, dt=1 / 25)
     info = json.loads((recon / "run.json").read_text())
     info["found_obstacles"] = [{"center": [-0.2, 0.4, 0.1], "radius": 0.07, "sphere_like": True}]
+    info["source"] = {"center": [0.1, 0.02, 0.0], "radius": 0.03, "direction": [1.0, 0.0, 0.0], "speed": 0.5}
     (recon / "run.json").write_text(json.dumps(info))
     future = write_run(tmp_path / "future", scene, [tiny_state(t) for t in range(4, 7)], h=0.1, dt=1 / 25)
     info = json.loads((future / "run.json").read_text())
@@ -41,6 +42,8 @@ def test_cameras_bodies_and_frames_of_a_run(two_runs):
     assert [(b.origin, b.radius) for b in future.bodies()] == [("declared", 0.05), ("found", 0.07),
                                                                ("interaction", 0.06)]  # found: the parent's
     assert future.state(2) is None and future.state(5).frame == 5
+    assert recon.source().center == (0.1, 0.02, 0.0) and recon.source().radius == 0.03  # the one recon used
+    assert future.source().radius == 0.1  # none recorded: the scene's
     assert recon.static_layer_file() is None
 
 
