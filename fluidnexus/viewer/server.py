@@ -101,7 +101,7 @@ class Viewer:
         inputs = [m for m in self.marks[0] if m.role == "input"]
         toward = inputs[0].camera.center - center if inputs else np.array([0.0, 0.0, 1.0])
         toward = np.array([toward[0], 0.0, toward[2]]) / max(np.hypot(toward[0], toward[2]), 1e-9)
-        eye = center + self.size * (2.2 * toward + np.array([0.0, 0.6, 0.0]))  # behind the first input camera, above
+        eye = center + self.size * (2.2 * toward + np.array([0.0, 0.6, 0.0]))  # the first input camera's side, above
         server.initial_camera.position = tuple(eye)
         server.initial_camera.look_at = tuple(center)
         server.initial_camera.up = (0.0, 1.0, 0.0)
@@ -124,7 +124,8 @@ class Viewer:
     def _extent(run: RunContent) -> tuple[np.ndarray, np.ndarray]:
         if run.scene.volume is not None:
             return np.asarray(run.scene.volume.min, float), np.asarray(run.scene.volume.max, float)
-        pos = run.state(run.frames[0]).visual_positions
+        state = run.state(run.frames[0])
+        pos = np.vstack([state.visual_positions, state.physical_positions, np.zeros((1, 3))])
         return pos.min(0).astype(float), pos.max(0).astype(float) + 1e-3
 
     def _top_speed(self) -> float:
@@ -247,22 +248,28 @@ class Viewer:
         state = run.state(t)
         label = "AB"[i] if len(self.runs) > 1 else run.name
         if state is None:
-            for part in ("smoke", "particles"):
-                if getattr(node, part) is not None:
-                    getattr(node, part).remove()
-                    setattr(node, part, None)
+            self._drop(node, "smoke", "particles")
             return f"{label}: no frame {t}"
         splats = state_splats(state)
-        node.smoke = scene.add_gaussian_splats(f"/run{i}/smoke", splats.centers, splats.covariances, splats.rgbs,
-                                               splats.opacities, visible=self.smoke_on.value)
-        if self.particles_on.value:
+        if len(splats):
+            node.smoke = scene.add_gaussian_splats(f"/run{i}/smoke", splats.centers, splats.covariances,
+                                                   splats.rgbs, splats.opacities, visible=self.smoke_on.value)
+        else:
+            self._drop(node, "smoke")
+        if self.particles_on.value and state.num_physical:
             colors = speed_colors(state.physical_velocities, float(self.speed_top.value))
             node.particles = scene.add_point_cloud(f"/run{i}/particles", state.physical_positions, colors,
                                                    point_size=0.006 * self.size, point_shape="circle")
-        elif node.particles is not None:
-            node.particles.remove()
-            node.particles = None
+        else:
+            self._drop(node, "particles")
         return f"{label}: {state.num_visual} Gaussians, {state.num_physical} particles"
+
+    @staticmethod
+    def _drop(node: RunNodes, *parts: str) -> None:
+        for part in parts:
+            if getattr(node, part) is not None:
+                getattr(node, part).remove()
+                setattr(node, part, None)
 
     def _update_frusta(self, t: int) -> None:
         for i, marks in enumerate(self.marks):

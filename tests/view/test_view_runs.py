@@ -127,3 +127,27 @@ def test_the_static_layer_is_shown_once_read(tmp_path):
         assert not served.viewer.nodes[0].parts["static"].visible
     finally:
         served.stop()
+
+
+def test_an_empty_frame_shows_nothing(tmp_path):
+    pytest.importorskip("viser", reason="viser is not installed (pip install 'fluidnexus[view]')")
+    from fluidnexus.state import FrameState
+    from fluidnexus.viewer import open_viewer
+
+    e3, e4 = np.zeros((0, 3), np.float32), np.zeros((0, 4), np.float32)
+    empty = FrameState(1, e3, e3, e3, np.zeros((0, 1), np.float32), e3, e4, np.zeros(0, np.float32))
+    scene = write_scene(tmp_path / "scene", [("front", "input", ring_camera(0), None)])
+    run = write_run(tmp_path / "run", scene, [tiny_state(0), empty], h=0.1, dt=1 / 25)
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    served = open_viewer([run], port=port)
+    try:
+        viewer = served.viewer
+        viewer.particles_on.value = True
+        assert viewer.nodes[0].smoke is not None and viewer.nodes[0].particles is not None
+        viewer.frame.value = 1
+        assert viewer.nodes[0].smoke is None and viewer.nodes[0].particles is None
+        assert "0 Gaussians, 0 particles" in viewer.status.content
+    finally:
+        served.stop()
