@@ -1,5 +1,5 @@
 # Quick start: `make demo` and `make test`. Both create .venv and install the package when needed
-# (with the test, gen and cluster extras, so the tiny generative-model and Ray batch tests run too).
+# (with the test, gen, cluster and view extras, so the tiny generative-model, Ray batch and viewer tests run too).
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
@@ -12,7 +12,7 @@ setup: $(STAMP)
 
 $(STAMP): setup.cfg setup.py pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet -e '.[test,gen,cluster]'
+	$(BIN)/python -m pip install --quiet -e '.[test,gen,cluster,view]'
 	touch $(STAMP)
 
 demo: $(STAMP)

@@ -5,7 +5,6 @@ import logging
 from pathlib import Path
 
 import click
-import numpy as np
 
 from fluidnexus.errors import InputError
 from fluidnexus.world_frame import SourceFrame
@@ -15,53 +14,22 @@ from .options import arch_option, start_engine
 log = logging.getLogger("fluidnexus")
 
 
-def sample_fields(state, volume, voxel: float, h: float, frame=None):
-    """Density and velocity of a state's physical particles on a grid of ``voxel`` metres over ``volume``.
-
-    With ``frame`` (a :class:`~fluidnexus.world_frame.SourceFrame`) the grid is laid out in that frame instead:
-    over the volume's box there, ``voxel`` metres converted to its unit, and the fields are in its units.
-
-    Returns (origin, spacing, {"density": [nz, ny, nx], "velocity": [nz, ny, nx, 3]}).
-    """
-    import torch
-
-    from fluidnexus import engine
-    from fluidnexus.export.vti import grid_points
-
-    lo, hi = np.asarray(volume.min), np.asarray(volume.max)
-    if frame is not None:
-        corners = frame.from_scene([np.where(np.array(p, bool), hi, lo) for p in np.ndindex(2, 2, 2)])
-        lo, hi, voxel = corners.min(0), corners.max(0), float(frame.length_from_scene(voxel))
-    counts = np.maximum(2, np.round((hi - lo) / voxel).astype(int) + 1)
-    spacing = (hi - lo) / (counts - 1)
-    shape = (int(counts[2]), int(counts[1]), int(counts[0]))
-    pts = grid_points(lo, spacing, shape).reshape(-1, 3)
-    if frame is not None:
-        pts = frame.to_scene(pts)
-    query = engine.FieldQuery(max(1, state.num_physical), len(pts), h)
-    query.forward(torch.as_tensor(pts), torch.as_tensor(state.physical_positions, dtype=torch.float64),
-                  torch.as_tensor(state.physical_velocities, dtype=torch.float64))
-    density = query.density().numpy().reshape(shape)
-    velocity = query.velocity().numpy().reshape(*shape, 3)
-    if frame is not None:
-        density, velocity = frame.density_from_scene(density), frame.from_scene(velocity)
-    return lo, spacing, {"density": density, "velocity": velocity}
-
-
 @click.command()
 @click.argument("run_dir", type=click.Path(path_type=Path))
-@click.option("--format", "fmt", type=click.Choice(["ply", "vti", "npz"]), required=True)
+@click.option("--format", "fmt", type=click.Choice(["ply", "vti", "vdb", "npz"]), required=True)
 @click.option("--out", required=True, type=click.Path(path_type=Path, file_okay=False))
-@click.option("--voxel", type=float, default=0.01, show_default=True, help="Grid spacing of vti/npz fields, m.")
+@click.option("--voxel", type=float, default=0.01, show_default=True, help="Grid spacing of vti/vdb/npz fields, m.")
 @click.option("--frame", "frame_name", type=click.Choice(["scene", "source"]), default="scene", show_default=True,
               help="Coordinates of the files: the scene's world (metres, +y up), or the world of the file the scene "
                    "was imported from (its axes and unit; scene.json source_frame).")
 @arch_option
 def export(run_dir: Path, fmt: str, out: Path, voxel: float, frame_name: str, arch: str) -> None:
-    """One file per frame: 3DGS PLY (splat viewers), VTK ImageData .vti (ParaView) or raw .npz; PLY also writes the
-    run's static layer (backdrop, obstacles) as static.ply when it has one."""
+    """One file per frame: 3DGS PLY (splat viewers), VTK ImageData .vti (ParaView), OpenVDB .vdb (Blender, Houdini)
+    or raw .npz; PLY also writes the run's static layer (backdrop, obstacles) as static.ply when it has one."""
+    from fluidnexus.export.fields import sample_fields
     from fluidnexus.export.npz import write_frame_npz
     from fluidnexus.export.ply import write_gaussians_ply
+    from fluidnexus.export.vdb import write_vdb
     from fluidnexus.export.vti import write_vti
     from fluidnexus.progress import track
     from fluidnexus.runs import open_run
@@ -94,6 +62,8 @@ def export(run_dir: Path, fmt: str, out: Path, voxel: float, frame_name: str, ar
             state = frame.state_from_scene(state)
         if fmt == "vti":
             write_vti(path, origin, spacing, fields)
+        elif fmt == "vdb":
+            write_vdb(path, origin, spacing, fields)
         else:
             write_frame_npz(path, state, origin, spacing, fields)
     log.info("wrote %d %s files to %s", len(run.frames), fmt, out)

@@ -24,6 +24,7 @@ from .recon import recon
 from .refine import refine
 from .show import evaluate, render
 from .synth import synth
+from .view import view
 
 
 class FluidnexusGroup(click.Group):
@@ -76,3 +77,4 @@ main.add_command(interact)
 main.add_command(diagnose)
 main.add_command(background)
 main.add_command(batch)
+main.add_command(view)

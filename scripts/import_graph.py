@@ -15,7 +15,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 TOP = ("fluidnexus", "cli")
 # layers from the top down; a module may import its own layer and the ones below it
-PIPELINES = ("calibrate", "gen", "recon", "predict", "diagnose", "batch", "evaluation", "render_run")
+PIPELINES = ("calibrate", "gen", "recon", "predict", "diagnose", "batch", "evaluation", "render_run", "viewer")
 LAYERS = ("cli", "pipelines", "scene", "engine")
 
 
