@@ -9,6 +9,7 @@ writes them), test00 held out.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -111,12 +112,15 @@ def info_json(spec: SceneSpec, cams: dict) -> dict:
     return info
 
 
-def generate(seed: int, out_dir, size: str = "small") -> Path:
+def generate(seed: int, out_dir, size: str = "small", **overrides) -> Path:
     """Write the scene of ``seed`` into ``out_dir`` (info.json, train00-03.mp4, test00.mp4, plates/, truth.json);
-    return the info.json path. The same seed and size always write the same scene."""
+    return the info.json path. The same seed and size always write the same scene.
+
+    ``overrides`` replace fields of the drawn ``SceneSpec`` (tests: ``unit="mm"``, ``up="Z"`` write the same
+    scene in another unit or up axis)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    spec = draw(seed, size)
+    spec = replace(draw(seed, size), **overrides)
     grid, density, flow = simulate_scene(spec)
     kappa = extinction(spec, grid)
     cams = cameras(spec)
