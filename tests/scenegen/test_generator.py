@@ -183,3 +183,17 @@ def test_units_and_up_axes_import_to_the_same_metric_scene(tmp_path):
             assert np.allclose(v.camera.K, r.camera.K)
         assert np.array_equal(read_video(scene.root / scene.views[0].video),
                               read_video(ref.root / ref.views[0].video))
+
+
+def test_table_refuses_held_out_seeds_without_the_flag(tmp_path):
+    """bench_scene_family.py stops before generating anything when asked for a held-out seed without --held-out."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    for extra in (["--split", "held-out"], ["--seeds", f"{DEVELOPMENT_SEEDS[0]},{HELD_OUT_SEEDS[0]}"]):
+        proc = subprocess.run([sys.executable, str(root / "benchmarks" / "bench_scene_family.py"), "--work",
+                               str(tmp_path / "w"), *extra], capture_output=True, text=True, cwd=root)
+        assert proc.returncode != 0 and "held out" in proc.stderr, proc.stderr
+        assert not (tmp_path / "w").exists()
