@@ -20,13 +20,15 @@ memory):
 
 Scored on the held-out camera test00 (moving in some scenes), at the run's resolution over the run's frames: the
 run's NVS PSNR / SSIM from eval's JSON, next to two references computed here the way eval averages (per-frame means):
-an all-black image and the true frame 0 held still (frames equal to it excluded, as bench_sphere.py does). The source
+an all-black image and the true frame 0 held still (frames equal to it excluded, as bench_sphere.py does), read
+at the run's size and colour channels as eval reads the footage (recon's default is gray). The source
 in run.json against truth.json's: centre error in source radii and in box heights, the angle between directions,
 the radius ratio, found speed / true inflow speed, the start frame. Obstacles: run.json's ``found_obstacles``
 (found only with plates) against the true ones: how many were found and the centre error of the nearest found body
 for each true one, in the true body's size (radius or half-diagonal).
 
-Results go to W/results/seedN-PROTOCOL.json (kept, so the development and held-out halves can be run separately
+``--rescore`` computes the scores again from the runs and eval.json files already in W (steps not re-run, their
+timings kept). Results go to W/results/seedN-PROTOCOL.json (kept, so the development and held-out halves can be run separately
 into the same W), W/table.json and W/table.md (every row, then the two halves' means side by side). Held-out seeds
 are refused unless ``--held-out`` is given (docs/scene-family.md: they are run only to fill the table).
 """
@@ -69,15 +71,16 @@ def run(args: list, log: Path) -> dict:
     return {"seconds": round(time.time() - tic, 1), "peak_mib": round(int(peak[-1]) / 1024, 1)}
 
 
-def references(scene: Path, frames: tuple) -> dict:
-    """PSNR / SSIM of an all-black image and of the true frame 0 held still against test00 over ``frames``."""
+def references(scene: Path, frames: tuple, size: tuple, channels: int) -> dict:
+    """PSNR / SSIM of an all-black image and of the true frame 0 held still against test00 over ``frames``, read
+    as eval reads it (resized to the run's ``size`` (width, height), the run's ``channels``)."""
     from fluidnexus.metrics import psnr, ssim
     from fluidnexus.scene import load_ground_truth
     from fluidnexus.video import read_video
 
     gt = next(g for g in load_ground_truth(scene) if g.name == HELD_OUT)
-    video = read_video(scene / gt.video, frames=slice(*frames))
-    first = read_video(scene / gt.video, frames=slice(0, 1))[0]
+    video = read_video(scene / gt.video, frames=slice(*frames), size=size, channels=channels)
+    first = read_video(scene / gt.video, frames=slice(0, 1), size=size, channels=channels)[0]
     out = {}
     for key, ref in (("black", np.zeros_like(first)), ("frame0_held", first)):
         scores = [psnr(ref, f) for f in video if not np.array_equal(ref, f)]
@@ -146,15 +149,21 @@ def one(seed: int, protocol: str, args) -> dict:
     pwork = work / protocol
     pwork.mkdir(parents=True, exist_ok=True)
     log = pwork / "log.txt"
-    steps = prepare_scene(capture, truth, protocol, pwork, log, args)
     runs = pwork / "run"
-    resume = ["--resume"] if (runs / "config.json").exists() else []
-    steps["recon"] = run(["recon", pwork / "scene", "--out", runs, "--arch", "cpu", *resume,
-                          *shlex.split(args.recon_args)], log)
-    steps["eval"] = run(["eval", runs, "--json", pwork / "eval.json", "--arch", "cpu"], log)
+    previous = args.work / "results" / f"seed{seed}-{protocol}.json"
+    if args.rescore and (pwork / "eval.json").exists() and previous.exists():
+        steps = json.loads(previous.read_text())["steps"]  # scores again from the run and eval.json kept in W
+    else:
+        steps = prepare_scene(capture, truth, protocol, pwork, log, args)
+        resume = ["--resume"] if (runs / "config.json").exists() else []
+        steps["recon"] = run(["recon", pwork / "scene", "--out", runs, "--arch", "cpu", *resume,
+                              *shlex.split(args.recon_args)], log)
+        steps["eval"] = run(["eval", runs, "--json", pwork / "eval.json", "--arch", "cpu"], log)
     scores = json.loads((pwork / "eval.json").read_text())
     info = json.loads((runs / "run.json").read_text())
     nv = scores["novel_view"]["per_view"][HELD_OUT]
+    res = scores["resolution"]
+    channels = json.loads((runs / "config.json").read_text())["recon"]["channels"]
     return {"seed": seed, "split": split_of(seed), "protocol": protocol, "size": args.size,
             "scene": {"source": truth["source"]["kind"], "window": truth["source"]["window"],
                       "backdrop": truth["backdrop"]["kind"], "smoke": truth["smoke"]["mode"],
@@ -167,7 +176,8 @@ def one(seed: int, protocol: str, args) -> dict:
             "frames": scores["frames"], "resolution": scores["resolution"],
             "nvs": {"psnr": nv["psnr"], "ssim": nv["ssim"]},
             "resimulation": scores["resimulation"]["per_view"][HELD_OUT],
-            "references": references(pwork / "scene", tuple(scores["frames"])),
+            "references": references(pwork / "scene", tuple(scores["frames"]), (res["width"], res["height"]),
+                                     channels),
             "source": source_score(info["source"], truth["source"], truth["length_m"]),
             "source_finder": info.get("source_finder"),
             "obstacles": obstacle_score(info.get("found_obstacles", []), truth["obstacles"]),
@@ -244,6 +254,8 @@ def main() -> None:
     parser.add_argument("--plates", choices=["estimated", "true"], default="estimated")
     parser.add_argument("--source", choices=["found", "import"], default="found")
     parser.add_argument("--recon-args", default=FAST_RECON)
+    parser.add_argument("--rescore", action="store_true",
+                        help="score the runs already in W again (their eval.json), without running any step")
     args = parser.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")] if args.seeds else list(SPLITS[args.split])
     try:
