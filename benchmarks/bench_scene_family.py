@@ -28,9 +28,9 @@ the radius ratio, found speed / true inflow speed, the start frame. Obstacles: r
 for each true one, in the true body's size (radius or half-diagonal).
 
 ``--rescore`` computes the scores again from the runs and eval.json files already in W (steps not re-run, their
-timings kept). Results go to W/results/seedN-PROTOCOL.json (kept, so the development and held-out halves can be run separately
-into the same W), W/table.json and W/table.md (every row, then the two halves' means side by side). Held-out seeds
-are refused unless ``--held-out`` is given (docs/scene-family.md: they are run only to fill the table).
+timings kept). Results go to W/results/seedN-PROTOCOL.json (kept, so the development and held-out halves can be
+run separately into the same W), W/table.json and W/table.md (every row, then the two halves' means side by side).
+Held-out seeds are refused unless ``--held-out`` is given (docs/scene-family.md: they are run only to fill the table).
 """
 from __future__ import annotations
 
@@ -191,8 +191,9 @@ def fmt(x, spec=".2f"):
 
 
 def table(results: list) -> str:
-    rows = ["| seed | split | protocol | scene | NVS PSNR / SSIM | black | frame 0 held | source centre err (radii / box) | "
-            "direction err | obstacles matched / true (found) | time s | peak MiB |", "|" + "---|" * 12]
+    rows = ["| seed | split | protocol | scene | NVS PSNR / SSIM | black | frame 0 held | "
+            "source centre err (radii / box) | direction err | obstacles matched / true (found) | time s | "
+            "peak MiB |", "|" + "---|" * 12]
     for r in sorted(results, key=lambda r: (r["split"], r["seed"], r["protocol"])):
         s, ref, src, ob = r["scene"], r["references"], r["source"], r["obstacles"]
         scene = (f"{s['source']} {s['window']}, {s['backdrop']}/{s['smoke']}, {s['layout']} {s['elevation']}"
