@@ -9,10 +9,9 @@ For each seed: ``benchmarks.scenes.generate`` writes the scene as a PINF capture
 memory):
 
 - ``calibrate --from-pinf info.json --metres-per-unit M`` with the protocol's roles from truth.json (four-view:
-  train00-03 in, test00 held out; single-view: train01 in, train00/02/03 novel, test00 held out). PINF has no
-  source, and the import puts an upward one at the volume's foot; the table removes it from scene.json (what
-  docs/scene-format.md tells a user with a jet or a burst to do), so ``recon`` finds the source in the footage
-  and the table scores what it found (``--source import`` keeps the import's).
+  train00-03 in, test00 held out; single-view: train01 in, train00/02/03 novel, test00 held out). PINF declares
+  no source and the import invents none, so ``synth`` (single view: the foot of the earliest smoke cast onto the
+  floor) and ``recon`` (the footage's hulls) find it, and the table scores what recon found.
 - ``background`` where the scene is not plain black (a backdrop or an obstacle is in view): plates estimated from
   the footage (``--plates true`` gives the generator's exact plates with ``--plate``).
 - single-view: ``synth`` and ``refine`` (the non-learned defaults).
@@ -125,10 +124,6 @@ def prepare_scene(capture: Path, truth: dict, protocol: str, work: Path, log: Pa
     if "novel" in roles:
         cmd[5:5] = ["--novel", roles["novel"]]
     steps["calibrate"] = run(cmd, log)
-    if args.source == "found":
-        data = json.loads((scene / "scene.json").read_text())
-        data.pop("source", None)
-        (scene / "scene.json").write_text(json.dumps(data, indent=1))
     if truth["needs_plates"]:
         plates = []
         if args.plates == "true":
@@ -171,7 +166,7 @@ def one(seed: int, protocol: str, args) -> dict:
                       "moving": truth["cameras"]["held_out_moving"], "unit": truth["file"]["unit"],
                       "up": truth["file"]["up"], "length_m": truth["length_m"], "obstacles": len(truth["obstacles"]),
                       "size_px": [truth["width"], truth["height"]], "frames": truth["frames"]},
-            "settings": {"source": args.source, "plates": args.plates if truth["needs_plates"] else None,
+            "settings": {"plates": args.plates if truth["needs_plates"] else None,
                          "recon_args": args.recon_args},
             "frames": scores["frames"], "resolution": scores["resolution"],
             "nvs": {"psnr": nv["psnr"], "ssim": nv["ssim"]},
@@ -253,7 +248,6 @@ def main() -> None:
     parser.add_argument("--size", choices=sorted(SIZES), default="small")
     parser.add_argument("--protocols", default=",".join(PROTOCOLS))
     parser.add_argument("--plates", choices=["estimated", "true"], default="estimated")
-    parser.add_argument("--source", choices=["found", "import"], default="found")
     parser.add_argument("--recon-args", default=FAST_RECON)
     parser.add_argument("--rescore", action="store_true",
                         help="score the runs already in W again (their eval.json), without running any step")

@@ -34,6 +34,10 @@ from fluidnexus.calibrate.assemble import PROTOCOLS
 @click.option("--arc-deg", type=float, default=120.0, show_default=True, help="Angle the arc spans.")
 @click.option("--distance", type=float, default=1.2, show_default=True, help="Camera-to-plume-axis distance, m.")
 @click.option("--camera-height", type=float, help="Camera height above the source, m (default: source at 90%).")
+@click.option("--source", metavar="CX,CY,CZ,R",
+              help="--from-pinf, --sample: the smoke inflow's disk (centre and radius) in the imported file's own "
+                   "frame and unit. A PINF capture declares none: without it synth and recon find the inflow in the "
+                   "footage (docs/calibration.md).")
 @click.option("--source-radius", type=float, default=None,
               help="Radius of the smoke inflow, m (default 0.025 m x the scene's length scale, docs/scale.md).")
 @click.option("--fps", type=float, help="Frame rate where the footage does not say (image folders).")

@@ -105,6 +105,50 @@ class Source:
 
 
 @dataclass(frozen=True)
+class Floor:
+    """The plane the scene stands on: through ``point``, ``normal`` (unit) pointing up out of it. From one view the
+    depth of the smoke is not observed; where no source is declared, the plume is taken to leave something standing
+    on this floor (``gen/plume_foot.py``)."""
+
+    point: tuple[float, float, float]
+    normal: tuple[float, float, float] = UP
+
+    def to_dict(self) -> dict:
+        return {"point": list(self.point), "normal": list(self.normal)}
+
+    @classmethod
+    def from_dict(cls, data, path=None, volume: "Volume | None" = None, fld: str = "floor") -> "Floor":
+        """Parse and check a floor record: a non-zero normal, and a plane that meets ``volume`` (when given)."""
+        if not isinstance(data, dict) or "point" not in data:
+            raise InputError(path, fld, "expected {point: [x, y, z], normal?: [nx, ny, nz]} (normal default up)")
+        n = np.asarray(_triple(data.get("normal", UP), path, f"{fld}.normal"))
+        norm = float(np.linalg.norm(n))
+        if norm < 1e-9:
+            raise InputError(path, f"{fld}.normal", f"has zero length ({n.tolist()})")
+        floor = cls(_triple(data["point"], path, f"{fld}.point"), tuple(float(v) for v in n / norm))
+        if volume is not None and not floor.meets(volume):
+            raise InputError(path, fld, f"the plane through {list(floor.point)} with normal {list(floor.normal)} "
+                                        f"lies outside the volume {list(volume.min)}..{list(volume.max)}")
+        return floor
+
+    def meets(self, volume: "Volume") -> bool:
+        """Whether the plane passes through the box ``volume`` (its faces included)."""
+        corners = np.array([[(volume.max if b else volume.min)[a] for a, b in enumerate(bits)]
+                            for bits in np.ndindex(2, 2, 2)])
+        side = (corners - np.asarray(self.point)) @ np.asarray(self.normal)
+        return bool(side.min() <= 0.0 <= side.max())
+
+    def hit(self, origin: np.ndarray, direction: np.ndarray) -> np.ndarray | None:
+        """Where the ray ``origin + s direction`` (s > 0) meets the plane, or None."""
+        n = np.asarray(self.normal)
+        along = float(np.dot(direction, n))
+        if abs(along) < 1e-12:
+            return None
+        s = float(np.dot(np.asarray(self.point) - origin, n)) / along
+        return None if s <= 0 else origin + s * np.asarray(direction)
+
+
+@dataclass(frozen=True)
 class View:
     """A camera of the scene with its role and its video (relative to the scene folder, or None)."""
 
@@ -177,6 +221,13 @@ class Scene:
     obstacles: tuple = ()  # scenery.obstacles.SphereBody / MeshBody, scene coordinates
     source_frame: SourceFrame | None = None  # None: the scene is its own source frame (world_frame.py)
     backdrop_color: tuple[float, float, float] | None = None  # a known backdrop colour (PINF frame_bkg_color)
+    floor: Floor | None = None  # declared in scene.json; ``ground()`` also gives the default
+
+    def ground(self) -> Floor | None:
+        """The floor the plume stands on: the declared one, else the volume's bottom face (normal up), else None."""
+        if self.floor is not None:
+            return self.floor
+        return None if self.volume is None else Floor(tuple(float(v) for v in self.volume.bottom_center))
 
     def view(self, name: str) -> View:
         for v in self.views:
@@ -366,12 +417,13 @@ def load_scene(path: str | Path, check_videos: bool = True) -> Scene:
         views.append(View(item["name"], role, camera, video, item.get("provenance")))
     if not views:
         raise InputError(scene_file, "views", "the scene has no views")
-    scene = Scene(root, fps, frame_count, tuple(views), _parse_volume(data.get("volume"), scene_file),
-                  _parse_source(data.get("source"), scene_file), data.get("extra", {}),
-                  _parse_backgrounds(data.get("backgrounds"), views, root, scene_file, check_videos),
+    volume = _parse_volume(data.get("volume"), scene_file)
+    floor = None if data.get("floor") is None else Floor.from_dict(data["floor"], scene_file, volume)
+    scene = Scene(root, fps, frame_count, tuple(views), volume, _parse_source(data.get("source"), scene_file),
+                  data.get("extra", {}), _parse_backgrounds(data.get("backgrounds"), views, root, scene_file,
+                                                            check_videos),
                   **_parse_frame_and_backdrop(data, scene_file),
-                  obstacles=parse_obstacles(data.get("obstacles"), scene_file,
-                                            _parse_volume(data.get("volume"), scene_file), root))
+                  obstacles=parse_obstacles(data.get("obstacles"), scene_file, volume, root), floor=floor)
     if check_videos:
         check_media(root, scene_file, frame_count,
                     [(f"views[{i}].video", v.video, v.camera) for i, v in enumerate(views) if v.video])
@@ -451,6 +503,8 @@ def scene_dict(scene: Scene, ground_truth: tuple[GroundTruth, ...] = ()) -> dict
         out["source_frame"] = scene.source_frame.to_dict()
     if scene.backdrop_color is not None:
         out["backdrop_color"] = list(scene.backdrop_color)
+    if scene.floor is not None:
+        out["floor"] = scene.floor.to_dict()
     return out
 
 

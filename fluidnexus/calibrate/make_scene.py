@@ -8,11 +8,13 @@ import os
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 from ..atomic import write_json
 from ..errors import InputError, require_positive
 from ..samples import sample_path
-from ..scene import SCENE_FILE, Scene, View, load_ground_truth, load_scene
-from ..scenery.obstacles import parse_option
+from ..scene import SCENE_FILE, Scene, Source, View, load_ground_truth, load_scene
+from ..scenery.obstacles import parse_option, parse_sphere
 from ..video import VIDEO_SUFFIXES, probe_video
 from ..world_frame import SourceFrame
 from .arc import arc_rig
@@ -57,6 +59,8 @@ def make_scene(out: Path, paths: tuple[Path, ...], opts: dict, overwrite: bool =
     if opts["plate"] is not None and chosen[0] != "video":
         raise InputError(None, "--plate", "applies to --video only; give the plates of other scenes with "
                                           "'fluidnexus background SCENE --plate NAME=FILE'")
+    if opts["source"] is not None and chosen[0] not in ("from_pinf", "sample"):
+        raise InputError(None, "--source", "applies to --from-pinf and --sample (other scenes: scene.json source)")
     if opts["metres_per_unit"] is not None:
         if chosen[0] not in IMPORTS:
             raise InputError(None, "--metres-per-unit", "applies to imported files only (--from-pinf, --from-nerf, "
@@ -77,12 +81,29 @@ def _roles(opts) -> Roles:
     return Roles.parse(opts["input_names"], opts["novel_names"], opts["gt_names"])
 
 
-def _from_pinf(out: Path, opts, info: Path | None = None, roles: Roles | None = None) -> Scene:
+def declared_source(text: str | None, frame: SourceFrame, volume) -> Source | None:
+    """``--source CX,CY,CZ,R`` in the imported file's frame and unit, in the scene (None without it); InputError
+    naming ``--source`` for anything but four finite numbers with R > 0 or a disk centre outside the volume."""
+    if text is None:
+        return None
+    ball = parse_sphere(text, "--source", "CX,CY,CZ,R (the inflow disk's centre and radius)")
+    center = frame.to_scene(np.asarray(ball.center))
+    if volume is not None and (np.any(center < np.asarray(volume.min)) or np.any(center > np.asarray(volume.max))):
+        raise InputError(None, "--source", f"the centre {np.round(center, 4).tolist()} (in the scene, metres) lies "
+                                           f"outside the volume {list(volume.min)}..{list(volume.max)}")
+    return Source(tuple(float(v) for v in center), float(frame.length_to_scene(ball.radius)))
+
+
+def _from_pinf(out: Path, opts, info: Path | None = None, roles: Roles | None = None, sample: bool = False) -> Scene:
+    """A PINF capture declares no inflow: the scene gets the user's ``--source`` or none (synth and recon find it in
+    the footage). The embedded samples' inflow is known: the foot of their volume (``source_at_volume_foot``)."""
     info = info or opts["from_pinf"]
     cap = read_pinf(info, opts["metres_per_unit"] or 1.0)
     views, gts = assign_roles(cap.recordings, roles or _roles(opts), info)
-    return write_scene(out, cap.fps, cap.frame_count, views, gts, cap.volume,
-                       source_at_volume_foot(cap.volume, opts["source_radius"]),
+    source = declared_source(opts["source"], cap.frame, cap.volume)
+    if sample and source is None:
+        source = source_at_volume_foot(cap.volume, opts["source_radius"])
+    return write_scene(out, cap.fps, cap.frame_count, views, gts, cap.volume, source,
                        {"pinf": cap.kept, "imported_from": str(info)}, link=opts["link"],
                        source_frame=_recorded(cap.frame), backdrop_color=cap.backdrop_color,
                        obstacles=opts["obstacles"])
@@ -104,7 +125,7 @@ def _in_scene(recordings: dict[str, Recording], frame: SourceFrame) -> dict[str,
 
 def _from_sample(out: Path, opts) -> Scene:
     roles = _roles(opts) if opts["input_names"] else PROTOCOLS[opts["protocol"]]
-    return _from_pinf(out, opts, sample_path(opts["sample"]) / "info.json", roles)
+    return _from_pinf(out, opts, sample_path(opts["sample"]) / "info.json", roles, sample=True)
 
 
 def _timing(source: Path, recordings, fps: float | None) -> tuple[float, int]:

@@ -2,7 +2,7 @@
 
 - A view without a clean plate (glowing smoke on black, as ScalarFlow's capture): its gray frames, as before.
 - A view with a plate (``fluidnexus background``: a backdrop, static objects): the smoke layer's opacity at the
-  observation size (background/smoke_layer.py, with its one assumption: one smoke colour per video, that of the
+  observation size (scenery/smoke_layer.py, with its one assumption: one smoke colour per video, that of the
   densest smoke). Smoke darker than its backdrop (PINF's absorbing smoke over white) and smoke brighter than it
   give the same positive image; the backdrop's texture and the static objects drop out.
 
@@ -61,7 +61,7 @@ def layer_plate(layer, camera) -> np.ndarray:
 def smoke_images(scene: Scene, views: list[tuple], frames: slice, layer=None) -> list[np.ndarray]:
     """[T, height, width] float64 for each view (name, video path, width, height, its camera at full size): its
     smoke in ``frames`` (module docstring). The views with a plate share one smoke colour, the densest smoke's over
-    all of them (background/smoke_layer.smoke_color): one smoke, seen from several sides. With a static ``layer``,
+    all of them (scenery/smoke_layer.smoke_color): one smoke, seen from several sides. With a static ``layer``,
     a view without a plate in a scene with plates is seen over the layer's render from its camera, in the layer's
     channels (a gray layer: its frames and that colour as gray)."""
     images, plated, held = {}, {}, {}

@@ -13,10 +13,12 @@ import logging
 import numpy as np
 
 from ..errors import InputError
+from ..images import to_channels
 from ..memory import check, video_estimate
 from ..scene import Scene, View, save_views
 from ..scenery.smoke_layer import view_smoke_layer
 from ..video import read_footage, resize_video, write_video
+from .plume_foot import plume_foot
 from .refiner import make_refiner
 from .synthesizer import SynthesisInput, make_synthesizer
 
@@ -45,32 +47,45 @@ def synthesis_source(scene: Scene, input_name: str | None) -> View:
     return source
 
 
-def synthesize_views(scene: Scene, method: str, options: dict, scale: float, source: View,
+def synthesize_views(scene: Scene, method: str, options: dict, scale: float, input_view: View,
                      smoke_color: np.ndarray | None, limit: int) -> int:
-    """Write a video for every novel view of ``scene`` from ``source``'s footage at ``scale`` of the scene's
-    videos with the synthesiser ``method`` (built with ``options``: ``weights=``, ``config=``); returns how many. With a plate for ``source`` (``fluidnexus background``) its smoke layer is
-    synthesised (over black) instead of the raw frames; ``smoke_color`` [3] is the smoke's colour where known
-    (None: estimated). Refuses (InputError) before reading anything when the videos would not fit in ``limit``
-    bytes."""
-    camera = source.camera.scaled(scale)
+    """Write a video for every novel view of ``scene`` from ``input_view``'s footage at ``scale`` of the scene's
+    videos with the synthesiser ``method`` (built with ``options``: ``weights=``, ``config=``); returns how many.
+
+    With a plate for ``input_view`` (``fluidnexus background``) its smoke layer is synthesised (over black) instead
+    of the raw frames; ``smoke_color`` [3] is the smoke's colour where known (None: estimated). Without a declared
+    source the plume stands where the input view shows its foot on the floor (``plume_foot``; recorded in each
+    novel view's provenance). Refuses (InputError) before reading anything when the videos would not fit in
+    ``limit`` bytes."""
+    camera = input_view.camera.scaled(scale)
     check(video_estimate("synth", scene.frame_count, camera.width, camera.height, 3), limit)
     synthesizer = make_synthesizer(method, **options)
-    footage = read_footage(scene.video_path(source), (camera.width, camera.height))
+    footage = read_footage(scene.video_path(input_view), (camera.width, camera.height))
     smoke = None  # the smoke layer's provenance record, with a plate
-    if source.name in scene.backgrounds:
-        footage, smoke = view_smoke_layer(scene, source, footage, smoke_color)
+    if input_view.name in scene.backgrounds:
+        footage, smoke = view_smoke_layer(scene, input_view, footage, smoke_color)
     elif smoke_color is not None:
-        raise InputError(None, "--smoke-color", f"input view {source.name!r} has no plate: there is no smoke layer "
-                                                "to separate (fluidnexus background first)")
-    inp = SynthesisInput(footage, camera, scene.source, scene.volume)
+        raise InputError(None, "--smoke-color", f"input view {input_view.name!r} has no plate: there is no smoke "
+                                                "layer to separate (fluidnexus background first)")
+    inflow, found = scene.source, None
+    if inflow is None:
+        behind = None if smoke is not None or scene.backdrop_color is None else to_channels(
+            np.asarray(scene.backdrop_color, np.float32), footage.shape[-1])
+        found = plume_foot(scene, input_view.name, camera, footage, behind, scene.video_path(input_view))
+        inflow = found.source
+        log.info("synth: no declared source; the plume's foot in %s (frame %d) meets the floor at %s, radius %.4g m",
+                 input_view.name, found.record["frame"], np.round(inflow.center, 4).tolist(), inflow.radius)
+    inp = SynthesisInput(footage, camera, inflow, scene.volume)
     done = {}
     for view in scene.with_role("novel"):
-        log.info("synth %s: %s -> %s", method, source.name, view.name)
+        log.info("synth %s: %s -> %s", method, input_view.name, view.name)
         rel = f"videos/{view.name}_synth.mp4"
         working = view.camera.scaled(scale)
         video = resize_video(synthesizer.synthesize(inp, working), stored_size(view.camera, working))
         write_video(scene.root / rel, video, scene.fps)
-        provenance = {"synth": {**synthesizer.provenance(), "input": source.name, "resolution": scale}}
+        provenance = {"synth": {**synthesizer.provenance(), "input": input_view.name, "resolution": scale}}
+        if found is not None:
+            provenance["synth"]["plume_foot"] = found.record
         if smoke is not None:
             provenance["smoke_layer"] = smoke
         done[view.name] = View(view.name, view.role, view.camera, rel, provenance)

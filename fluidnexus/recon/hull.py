@@ -15,6 +15,7 @@ import numpy as np
 
 from ..camera import Camera
 from ..scene import Volume
+from ..scenery.backdrop import smoke_mask
 
 
 @dataclass(frozen=True)
@@ -30,14 +31,6 @@ def hull_grid(volume: Volume, voxel: float) -> list[np.ndarray]:
     """The voxel centres along each axis of a ``voxel``-metre grid over ``volume``."""
     lo, hi = np.asarray(volume.min), np.asarray(volume.max)
     return [np.arange(lo[a] + voxel / 2, hi[a], voxel) for a in range(3)]
-
-
-def smoke_mask(image: np.ndarray, threshold: float, backdrop=None) -> np.ndarray:
-    """[H, W] bool: pixels of ``image`` [H, W, C] that differ from the backdrop ([C] one value or [H, W, C] a
-    plate; black without one) by more than ``threshold`` in some channel (smoke glows on black, darkens white)."""
-    if backdrop is None:
-        return image.max(axis=2) > threshold
-    return np.abs(image - np.asarray(backdrop, image.dtype)).max(axis=2) > threshold
 
 
 def visual_hull(cameras: tuple[Camera, ...], images: np.ndarray, volume: Volume, voxel: float,

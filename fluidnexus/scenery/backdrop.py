@@ -110,3 +110,11 @@ def run_backdrop(run) -> Backdrop:
 
     layer = load_static(run.root / STATIC_FILE) if (run.root / STATIC_FILE).is_file() else None
     return scene_backdrop(run.scene(check_videos=False), run.channels, layer)
+
+
+def smoke_mask(image: np.ndarray, threshold: float, backdrop=None) -> np.ndarray:
+    """[H, W] bool: pixels of ``image`` [H, W, C] that differ from the backdrop ([C] one value or [H, W, C] a
+    plate; black without one) by more than ``threshold`` in some channel (smoke glows on black, darkens white)."""
+    if backdrop is None:
+        return image.max(axis=2) > threshold
+    return np.abs(image - np.asarray(backdrop, image.dtype)).max(axis=2) > threshold

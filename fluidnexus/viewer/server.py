@@ -212,7 +212,7 @@ class Viewer:
                 path = run.static_layer_file()
                 if path is None:
                     continue
-                from ..static import load_static
+                from ..scenery.static_layer import load_static
 
                 try:
                     layer = load_static(path)

@@ -42,13 +42,29 @@ def test_sphere_structure_imports_z_up_into_y_up(tmp_path):
     np.testing.assert_allclose(scene.volume.min, [lo[0], lo[2], -hi[1]], atol=1e-12)
     np.testing.assert_allclose(scene.volume.max, [hi[0], hi[2], -lo[1]], atol=1e-12)
     assert scene.volume.max[0] - scene.volume.min[0] == pytest.approx(0.4 * 12.0064)
-    assert scene.source.center[1] == pytest.approx(scene.volume.min[1])  # the foot of the box is its bottom
+    assert scene.source is None  # PINF declares no inflow, and the import invents none
     data = json.loads((out / "scene.json").read_text())
     np.testing.assert_array_equal(data["source_frame"]["rotation"], [[1, 0, 0], [0, 0, 1], [0, -1, 0]])
     assert data["source_frame"]["metres_per_unit"] == 1.0
     assert data["backdrop_color"] == [1.0, 1.0, 1.0] and scene.backdrop_color == (1.0, 1.0, 1.0)
     assert data["extra"]["pinf"]["rot"] == "Z" and data["extra"]["pinf"]["voxel_scale"] == 12.0064
     assert [g.name for g in load_ground_truth(out)] == ["test02", "test04"]  # a val and a test video
+
+
+def test_a_declared_source_is_converted_and_kept_and_a_bad_one_refused(tmp_path):
+    info = write_capture(tmp_path / "cap")
+    lo, hi = source_box()
+    centre = [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]]  # z up: the foot of the file's box
+    out = tmp_path / "S"
+    ok("calibrate", "--from-pinf", info, "--input", TRAIN, "--out", out, "--source", ",".join(map(str, centre + [0.1])))
+    scene = load_scene(out)
+    np.testing.assert_allclose(scene.source.center, [centre[0], centre[2], -centre[1]], atol=1e-12)  # (x, z, -y)
+    assert scene.source.radius == pytest.approx(0.1)
+    for bad, says in (("1,2,3", "four finite numbers"), ("0,0,0,-1", "radius must be > 0"),
+                      (f"{hi[0] + 10},0,0,0.1", "outside the volume")):
+        res = invoke("calibrate", "--from-pinf", info, "--input", TRAIN, "--out", tmp_path / "bad", "--source", bad)
+        assert res.exit_code == 2 and "--source" in res.output and says in res.output, res.output
+        assert not (tmp_path / "bad").exists()
 
 
 def test_every_split_names_views_in_every_role(tmp_path):
@@ -137,10 +153,11 @@ def scaled_sample_info(folder: Path, factor: float) -> Path:
 
 def test_metres_per_unit_gives_the_original_geometry(tmp_path):
     roles = ["--input", "train00,train01,train03,train04", "--ground-truth", "train02"]
-    ok("calibrate", "--from-pinf", sample_path("scalarflow") / "info.json", *roles, "--out", tmp_path / "m")
+    ok("calibrate", "--from-pinf", sample_path("scalarflow") / "info.json", *roles, "--out", tmp_path / "m",
+       "--source", "0.34,0.0,-0.23,0.025")
     scaled = scaled_sample_info(tmp_path / "cm", 10.0)
     ok("calibrate", "--from-pinf", scaled, *roles, "--metres-per-unit", "0.1", "--out", tmp_path / "s",
-       "--to-pinf", tmp_path / "back.json")
+       "--to-pinf", tmp_path / "back.json", "--source", "3.4,0.0,-2.3,0.25")  # the same disk in the file's unit
     original, back = json.loads(scaled.read_text()), json.loads((tmp_path / "back.json").read_text())
     assert back["voxel_scale"] == original["voxel_scale"] and back["voxel_matrix"] == original["voxel_matrix"]
     for split in ("train_videos", "test_videos"):  # cameras written back in the file's unit
@@ -151,7 +168,8 @@ def test_metres_per_unit_gives_the_original_geometry(tmp_path):
     for key in ("min", "max"):
         np.testing.assert_allclose(b["volume"][key], a["volume"][key], rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(b["source"]["center"], a["source"]["center"], rtol=1e-12, atol=1e-15)
-    assert b["source"]["radius"] == a["source"]["radius"]
+    np.testing.assert_allclose(a["source"]["center"], [0.34, 0.0, -0.23], atol=1e-15)
+    assert b["source"]["radius"] == pytest.approx(a["source"]["radius"]) == pytest.approx(0.025)
     for va, vb in zip(a["views"] + a["ground_truth"], b["views"] + b["ground_truth"]):
         np.testing.assert_allclose(vb["camera"]["world_to_camera"], va["camera"]["world_to_camera"],
                                    rtol=1e-12, atol=1e-15)

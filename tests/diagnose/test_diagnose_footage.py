@@ -130,7 +130,7 @@ def test_plume_flows_around_the_scenes_obstacles(template, tmp_path, ti_engine):
 
 
 def test_obstacles_of_a_run_are_the_runs(template, tmp_path, ti_engine):
-    """Given a run folder, the bodies are the run's (recon.scenery.run_scenery: its scene's declared ones, and those
+    """Given a run folder, the bodies are the run's (scenery.world.run_scenery: its scene's declared ones, and those
     recon found in its static layer when it has one): here a run without a static layer keeps the declared ball."""
     from fluidnexus.runs import RUN_FORMAT
 
