@@ -26,7 +26,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def cli(*args) -> float:
     tic = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "cli", *map(str, args)], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+    subprocess.run([sys.executable, "-m", "fluidnexus_cli", *map(str, args)], cwd=ROOT, check=True,
+                   stdout=subprocess.DEVNULL)
     return time.perf_counter() - tic
 
 
@@ -50,8 +51,8 @@ def batch(work: Path, recon: list[str], cpus: float) -> tuple[float, dict]:
                                   for n in ("a", "b")))
     out = work / "batch"
     tic = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "cli", "batch", str(manifest), "--out", str(out), "--cpus-per-scene",
-                    str(cpus)], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
+    subprocess.run([sys.executable, "-m", "fluidnexus_cli", "batch", str(manifest), "--out", str(out),
+                    "--cpus-per-scene", str(cpus)], cwd=ROOT, check=True, stdout=subprocess.DEVNULL)
     wall = time.perf_counter() - tic
     record = json.loads((out / "batch.json").read_text())
     return wall, {n: s["seconds"] for n, s in record["scenes"].items()}

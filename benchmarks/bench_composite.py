@@ -70,8 +70,8 @@ def step(args: list, log: Path, seconds: dict) -> None:
     with open(log, "a") as fh:
         fh.write("$ fluidnexus " + " ".join(map(str, args)) + "\n")
         fh.flush()
-        code = subprocess.run([sys.executable, "-m", "cli", *map(str, args)], stdout=fh, stderr=subprocess.STDOUT,
-                              cwd=ROOT).returncode
+        code = subprocess.run([sys.executable, "-m", "fluidnexus_cli", *map(str, args)], stdout=fh,
+                              stderr=subprocess.STDOUT, cwd=ROOT).returncode
     if code:
         raise SystemExit(f"fluidnexus {args[0]} failed (exit {code}); see {log}")
     seconds[args[0]] = round(seconds.get(args[0], 0.0) + time.time() - tic, 1)

@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def cli(*args) -> float:
     tic = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "cli", *map(str, args)], cwd=ROOT, check=True)
+    subprocess.run([sys.executable, "-m", "fluidnexus_cli", *map(str, args)], cwd=ROOT, check=True)
     return time.perf_counter() - tic
 
 

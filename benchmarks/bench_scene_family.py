@@ -36,9 +36,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import re
 import shlex
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -48,26 +46,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from benchmarks.cli_steps import timed_command  # noqa: E402
 from benchmarks.scenes import HELD_OUT, SIZES, check_seeds, generate, split_of  # noqa: E402
 from benchmarks.scenes.splits import SPLITS, HeldOutError  # noqa: E402
 
 # the demo's reduced recon settings (cli/demo.py): a scene in minutes on a 2-core CPU
 FAST_RECON = "--init-iters 150 --dynamics-iters 12 --appearance-iters 8 --stabilization-steps 10 --static-iters 150"
 PROTOCOLS = ("four-view", "single-view")
-
-
-def run(args: list, log: Path) -> dict:
-    """``fluidnexus ARGS`` under /usr/bin/time -v in a fresh process: seconds and peak resident memory (MiB)."""
-    cmd = ["/usr/bin/time", "-v", sys.executable, "-m", "fluidnexus_cli", *map(str, args)]
-    tic = time.time()
-    with open(log, "a") as fh:
-        fh.write("$ fluidnexus " + " ".join(map(str, args)) + "\n")
-        fh.flush()
-        proc = subprocess.run(cmd, stdout=fh, stderr=subprocess.STDOUT, cwd=ROOT)
-    peak = re.findall(r"Maximum resident set size \(kbytes\): (\d+)", log.read_text())
-    if proc.returncode != 0:
-        raise RuntimeError(f"fluidnexus {args[0]} failed (exit {proc.returncode}); see {log}")
-    return {"seconds": round(time.time() - tic, 1), "peak_mib": round(int(peak[-1]) / 1024, 1)}
 
 
 def references(scene: Path, frames: tuple, size: tuple, channels: int) -> dict:
@@ -123,15 +108,15 @@ def prepare_scene(capture: Path, truth: dict, protocol: str, work: Path, log: Pa
            roles["ground_truth"], *truth["calibrate_args"], "--out", scene]
     if "novel" in roles:
         cmd[5:5] = ["--novel", roles["novel"]]
-    steps["calibrate"] = run(cmd, log)
+    steps["calibrate"] = timed_command(cmd, log)
     if truth["needs_plates"]:
         plates = []
         if args.plates == "true":
             plates = [t for n in roles["input"].split(",") for t in ("--plate", f"{n}={capture / 'plates' / n}.png")]
-        steps["background"] = run(["background", scene, *plates], log)
+        steps["background"] = timed_command(["background", scene, *plates], log)
     if protocol == "single-view":
-        steps["synth"] = run(["synth", scene], log)
-        steps["refine"] = run(["refine", scene], log)
+        steps["synth"] = timed_command(["synth", scene], log)
+        steps["refine"] = timed_command(["refine", scene], log)
     return steps
 
 
@@ -151,9 +136,9 @@ def one(seed: int, protocol: str, args) -> dict:
     else:
         steps = prepare_scene(capture, truth, protocol, pwork, log, args)
         resume = ["--resume"] if (runs / "config.json").exists() else []
-        steps["recon"] = run(["recon", pwork / "scene", "--out", runs, "--arch", "cpu", *resume,
-                              *shlex.split(args.recon_args)], log)
-        steps["eval"] = run(["eval", runs, "--json", pwork / "eval.json", "--arch", "cpu"], log)
+        steps["recon"] = timed_command(["recon", pwork / "scene", "--out", runs, "--arch", "cpu", *resume,
+                                        *shlex.split(args.recon_args)], log)
+        steps["eval"] = timed_command(["eval", runs, "--json", pwork / "eval.json", "--arch", "cpu"], log)
     scores = json.loads((pwork / "eval.json").read_text())
     info = json.loads((runs / "run.json").read_text())
     nv = scores["novel_view"]["per_view"][HELD_OUT]

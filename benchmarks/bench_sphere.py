@@ -15,32 +15,17 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
-import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from benchmarks.cli_steps import timed_command  # noqa: E402
+
 BALL_CENTER, BALL_RADIUS = np.array([-0.0224, 0.1662, -0.0553]), 0.4242
 VIEWS = ("train00", "train01", "train02", "train03", "train04")
 HELD_OUT = ("test02", "test04")
-
-
-def run(args: list, log: Path) -> dict:
-    """Run ``fluidnexus ARGS`` under /usr/bin/time -v; return seconds and peak memory (MiB)."""
-    cmd = ["/usr/bin/time", "-v", sys.executable, "-m", "cli", *map(str, args)]
-    tic = time.time()
-    with open(log, "a") as fh:
-        fh.write("$ fluidnexus " + " ".join(map(str, args)) + "\n")
-        fh.flush()
-        proc = subprocess.run(cmd, stdout=fh, stderr=subprocess.STDOUT, cwd=Path(__file__).resolve().parents[1])
-    text = log.read_text()
-    peak = re.findall(r"Maximum resident set size \(kbytes\): (\d+)", text)
-    if proc.returncode != 0:
-        raise SystemExit(f"fluidnexus {args[0]} failed (exit {proc.returncode}); see {log}")
-    return {"seconds": round(time.time() - tic, 1), "peak_mib": round(int(peak[-1]) / 1024, 1)}
 
 
 def references(scene: Path, frames: slice) -> dict:
@@ -76,18 +61,18 @@ def main() -> None:
     log, scene, runs = work / "log.txt", work / "scene", work / "run"
     steps = {}
     if not (scene / "scene.json").exists():
-        steps["calibrate"] = run(["calibrate", "--from-pinf", args.data / "info.json", "--input", ",".join(VIEWS),
-                                  "--ground-truth", ",".join(HELD_OUT), "--out", scene], log)
+        steps["calibrate"] = timed_command(["calibrate", "--from-pinf", args.data / "info.json", "--input",
+                                            ",".join(VIEWS), "--ground-truth", ",".join(HELD_OUT), "--out", scene], log)
     if not (scene / "backgrounds").exists():
-        steps["background"] = run(["background", scene], log)
+        steps["background"] = timed_command(["background", scene], log)
     resume = ["--resume"] if (runs / "config.json").exists() else []
-    steps["recon"] = run(["recon", scene, "--out", runs, "--frames", args.frames, "--resolution", args.resolution,
-                          "--arch", "cpu", *resume, *args.recon], log)
-    steps["eval"] = run(["eval", runs, "--json", work / "eval.json", "--arch", "cpu"], log)
-    steps["render"] = run(["render", runs, "--out", work / "videos", "--views", ",".join(HELD_OUT), "--compare",
-                           "--arch", "cpu"], log)
-    steps["render_black"] = run(["render", runs, "--out", work / "smoke", "--views", ",".join(HELD_OUT),
-                                 "--background", "black", "--alpha", "--arch", "cpu"], log)
+    steps["recon"] = timed_command(["recon", scene, "--out", runs, "--frames", args.frames, "--resolution",
+                                    args.resolution, "--arch", "cpu", *resume, *args.recon], log)
+    steps["eval"] = timed_command(["eval", runs, "--json", work / "eval.json", "--arch", "cpu"], log)
+    steps["render"] = timed_command(["render", runs, "--out", work / "videos", "--views", ",".join(HELD_OUT),
+                                     "--compare", "--arch", "cpu"], log)
+    steps["render_black"] = timed_command(["render", runs, "--out", work / "smoke", "--views", ",".join(HELD_OUT),
+                                           "--background", "black", "--alpha", "--arch", "cpu"], log)
     scores = json.loads((work / "eval.json").read_text())
     start, stop = scores["frames"]
     info = json.loads((runs / "run.json").read_text())

@@ -7,10 +7,11 @@ Makes the embedded ScalarFlow scene (``calibrate --sample scalarflow --protocol 
 held-out one, 120 frames of 270 x 480) and a synthetic run over it (``--frames`` frame states of ``--visual``
 Gaussians and ``--physical`` particles rising through the volume, ScalarFlow-like counts), then:
 
-1. starts ``python -m cli view RUN`` as a user does and a headless Chromium (already running, as a user's browser
-   is), which opens the page as soon as the command prints its address; it reports the seconds from the command's
-   start to the printed address, to the page's connection, and to the first screenshot in which the smoke is drawn
-   (gray-to-white pixels over 3 % of the page's middle, where the volume is). WebGL runs on SwiftShader (software).
+1. starts ``python -m fluidnexus_cli view RUN`` as a user does and a headless Chromium (already running, as a
+   user's browser is), which opens the page as soon as the command prints its address; it reports the seconds
+   from the command's start to the printed address, to the page's connection, and to the first screenshot in which
+   the smoke is drawn (gray-to-white pixels over 3 % of the page's middle, where the volume is). WebGL runs on
+   SwiftShader (software).
 2. in-process: seconds per frame step (``frame.value = t``: read the state, build the splats, send them) over the
    first 20 frames.
 
@@ -84,8 +85,8 @@ def first_frame(run: Path, port: int) -> dict:
     with Chromium(WIDTH, HEIGHT) as browser:
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         start = time.perf_counter()
-        proc = subprocess.Popen([sys.executable, "-m", "fluidnexus_cli", "view", str(run), "--port", str(port)], cwd=ROOT,
-                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
+        proc = subprocess.Popen([sys.executable, "-m", "fluidnexus_cli", "view", str(run), "--port", str(port)],
+                                cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
         try:
             said = ""
             while "viewer at" not in said:
@@ -180,8 +181,8 @@ def main() -> None:
     work = args.work or Path(tempfile.mkdtemp(prefix="bench-view-"))
     scene, run = work / "scene", work / "run"
     if not (scene / "scene.json").is_file():
-        subprocess.run([sys.executable, "-m", "fluidnexus_cli", "-q", "calibrate", "--sample", "scalarflow", "--protocol",
-                        "four-view", "--out", str(scene)], cwd=ROOT, check=True)
+        subprocess.run([sys.executable, "-m", "fluidnexus_cli", "-q", "calibrate", "--sample", "scalarflow",
+                        "--protocol", "four-view", "--out", str(scene)], cwd=ROOT, check=True)
     if not run.is_dir():
         import json
 
