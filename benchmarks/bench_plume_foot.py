@@ -11,7 +11,7 @@ marcher make the footage (benchmarks/scenes). For each of two sources
   and recon finds the inflow in the footage;
 - ``box-foot``: ``calibrate --source`` at the bottom centre of the box (the import's source before this change)
 
-it runs calibrate, synth, refine, recon (the family table's reduced settings) and eval, and reports the held-out
+it runs calibrate, background (where a backdrop or a body is in view), synth, refine, recon (the family table's reduced settings) and eval, and reports the held-out
 view's PSNR / SSIM, the references (black, frame 0 held: ``bench_scene_family.references``), the synthesised views'
 total intensity against the real views' (median over frames of sum(synth) / sum(real)), the source error (synth's
 plume foot and recon's inflow against the truth, in % of the box size) and the time. Markdown on stdout, JSON in
@@ -78,6 +78,8 @@ def protocol(info: Path, truth: dict, work: Path, source: str, recon_args: str) 
             foot = [(lo[0] + hi[0]) / 2, lo[1], (lo[2] + hi[2]) / 2]
             data["source"] = {"center": foot, "radius": truth["source"]["radius"]}
             (scene / "scene.json").write_text(json.dumps(data, indent=1))
+        if truth["needs_plates"]:  # a backdrop or a body in view: the smoke over its plate, as the family table does
+            times["background"] = timed_command(["background", scene], log)
         times["synth"] = timed_command(["synth", scene], log)
         times["refine"] = timed_command(["refine", scene], log)
         times["recon"] = timed_command(["recon", scene, "--out", run_dir, "--arch", "cpu", *shlex.split(recon_args)],

@@ -11,7 +11,7 @@ with the same generator constants (``test_hidden_effects_are_visible``), but dia
 decay cannot be named from this footage by any model: a plain plume with weaker buoyancy matches its training frames
 (``test_nearest_plain_plume_on_the_training_frames``). In a burst (the source on for the first part of the window
 only) it can (``test_nearest_plain_plume_in_a_burst``), and diagnose names it there, but with a tau 3x too long
-(xfail). The measured reasons are in each marker and in docs/diagnose.md.
+(xfail). The measured reasons are in each marker and in BENCHMARKS.md ("Diagnose: designs measured and not kept").
 """
 from __future__ import annotations
 
@@ -152,7 +152,7 @@ def test_diagnose_pbf_gas_control_keeps_paper_gas(template, tmp_path, ti_engine)
 
 def test_diagnose_finds_hidden_wind(template, tmp_path):
     """At the CLI's default budget (20 rollouts per fit; at 10 and 14 the base fit is not converged and the speed
-    comes out 43-69 % high: docs/diagnose.md, "Re-measured with the structure level"). The gas in air is the
+    comes out 43-69 % high: BENCHMARKS.md, "Re-measured with the structure level"). The gas in air is the
     structure (22.5 % better than the paper's gas on the validation frames, 0.645 against 0.832; in the suite's
     float64 engine it was 19.6 %, under the bar: hence diagnose in its own process) and the wind is found on it."""
     rng = np.random.default_rng(11)
@@ -177,7 +177,7 @@ def test_diagnose_finds_hidden_dissipation(template, tmp_path):
 
 
 # ---------------------------------------------------------------- slow tier: the other effects
-# The xfail reasons are measured on these tests' own draws (docs/diagnose.md, "Effects diagnose does not find").
+# The xfail reasons are measured on these tests' own draws (BENCHMARKS.md, "Effects diagnose does not find").
 # "Nearest plain plume" is nearest_plain_plume: the generator without the effect, its buoyancy and inflow
 # refitted on the training frames (training / validation image error). Common to all: the base fit lands in a
 # high-drag regime (k 17-44 1/s, 22-33 layers/s) where the PBF plume is pushed up by its source, and its
@@ -261,7 +261,7 @@ def test_nearest_plain_plume_in_a_burst(template, tmp_path):
                    "evaluations) or tau 5.8 s (20): the air model's puff does not slow like the grid solver's. "
                    "An air model whose smoke mixes and whose inlet's flux is exact (2026-11-26, not kept) fits the "
                    "training frames without decay (0.040 against 0.148 with the old inlet) and names none: the "
-                   "window 0:60 does not pin the decay (docs/diagnose.md, the eighth design)")
+                   "window 0:60 does not pin the decay (BENCHMARKS.md, the eighth design)")
 def test_diagnose_finds_buoyancy_decay_in_a_burst(template, tmp_path):
     """Hidden buoyancy decay (the decay test's draw, tau 0.93 s) in a burst whose scene declares its emission
     window: diagnose's plumes emit in it too (diagnose_density checks report.json's ``emission``), and it names
