@@ -9,12 +9,14 @@ marcher make the footage (benchmarks/scenes). For each of two sources
 
 - ``found``: the import declares none; synth casts the foot of the earliest smoke onto the floor (gen/plume_foot.py)
   and recon finds the inflow in the footage;
-- ``box-foot``: ``calibrate --source`` at the bottom centre of the box (the import's source before this change)
+- ``box-foot``: an upward source at the bottom centre of the box written into scene.json after the import (the
+  source the import declared before this change)
 
-it runs calibrate, background (where a backdrop or a body is in view), synth, refine, recon (the family table's reduced settings) and eval, and reports the held-out
-view's PSNR / SSIM, the references (black, frame 0 held: ``bench_scene_family.references``), the synthesised views'
-total intensity against the real views' (median over frames of sum(synth) / sum(real)), the source error (synth's
-plume foot and recon's inflow against the truth, in % of the box size) and the time. Markdown on stdout, JSON in
+it runs calibrate, background (where a backdrop or a body is in view), synth, refine, recon (the family table's
+reduced settings) and eval, and reports the held-out view's PSNR / SSIM, the references (black, frame 0 held:
+``bench_scene_family.references``), the synthesised views' total intensity against the real views' (median over
+frames of sum(synth) / sum(real)), the source error (synth's plume foot and recon's inflow against the truth, in %
+of the box size) and the time. Markdown on stdout, JSON in
 WORK/results.json.
 """
 from __future__ import annotations
@@ -57,9 +59,9 @@ def brightness(scene: Path, capture: Path) -> dict:
     for view in load_scene(scene).with_role("novel"):
         synth = read_footage(scene / (view.provenance or {}).get("unrefined", view.video))
         real = read_footage(capture / f"{view.name}.mp4", (synth.shape[2], synth.shape[1]))
-        totals = synth.reshape(len(synth), -1).sum(1), real.reshape(len(real), -1).mean(1) * synth[0].size
-        keep = totals[1] > 1e-6 * synth[0].size
-        out[view.name] = round(float(np.median(totals[0][keep] / totals[1][keep])), 3)
+        synth_total, real_total = (v.reshape(len(v), -1).sum(1) for v in (synth, real))
+        keep = real_total > 1e-6 * synth[0].size  # frames the real smoke shows in
+        out[view.name] = round(float(np.median(synth_total[keep] / real_total[keep])), 3)
     return out
 
 

@@ -13,9 +13,9 @@ import logging
 import numpy as np
 
 from ..errors import InputError
-from ..images import to_channels
 from ..memory import check, video_estimate
 from ..scene import Scene, View, save_views
+from ..scenery.backdrop import Backdrop
 from ..scenery.smoke_layer import view_smoke_layer
 from ..video import read_footage, resize_video, write_video
 from .plume_foot import plume_foot
@@ -69,8 +69,8 @@ def synthesize_views(scene: Scene, method: str, options: dict, scale: float, inp
                                                 "layer to separate (fluidnexus background first)")
     inflow, found = scene.source, None
     if inflow is None:
-        behind = None if smoke is not None or scene.backdrop_color is None else to_channels(
-            np.asarray(scene.backdrop_color, np.float32), footage.shape[-1])
+        behind = None if smoke is not None else Backdrop(  # the smoke layer is over black; else the scene's colour
+            footage.shape[-1], {}, color=scene.backdrop_color).behind(camera).background
         found = plume_foot(scene, input_view.name, camera, footage, behind, scene.video_path(input_view))
         inflow = found.source
         log.info("synth: no declared source; the plume's foot in %s (frame %d) meets the floor at %s, radius %.4g m",

@@ -16,6 +16,7 @@ from fluidnexus.state import FrameState
 
 from handmade_run import write_run
 from handmade_scene import ring_camera, write_scene
+from view.ports import free_port
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -54,19 +55,15 @@ def test_bad_port_and_host_are_refused(tiny_run):
 
 def test_missing_viser_names_the_extra(tiny_run, monkeypatch):
     monkeypatch.setitem(sys.modules, "viser", None)  # import viser raises ImportError
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
+    port = free_port()
     assert_clean_failure(invoke("view", tiny_run, "--port", port), "viser", "pip install 'fluidnexus[view]'")
 
 
 def test_serves_on_localhost_until_interrupted(tiny_run):
     pytest.importorskip("viser", reason="viser is not installed (pip install 'fluidnexus[view]')")
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    proc = subprocess.Popen([sys.executable, "-m", "fluidnexus_cli", "view", str(tiny_run), "--port", str(port)], cwd=ROOT,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    port = free_port()
+    proc = subprocess.Popen([sys.executable, "-m", "fluidnexus_cli", "view", str(tiny_run), "--port", str(port)],
+                            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
         deadline, said = time.monotonic() + 60, ""
         while "viewer at" not in said and time.monotonic() < deadline and proc.poll() is None:

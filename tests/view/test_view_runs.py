@@ -1,7 +1,6 @@
 """What the viewer takes from run folders (cameras and their roles, obstacles of every origin, frames read on
 demand) and how it lays out two runs; the scene is served by viser without a browser."""
 import json
-import socket
 
 import numpy as np
 import pytest
@@ -10,6 +9,7 @@ from fluidnexus.viewer.sources import RunContent
 
 from handmade_run import write_run
 from handmade_scene import ring_camera, write_scene
+from view.ports import free_port
 from view.test_view_cli import tiny_state
 
 
@@ -51,9 +51,7 @@ def test_two_runs_side_by_side_or_toggled(two_runs):
     pytest.importorskip("viser", reason="viser is not installed (pip install 'fluidnexus[view]')")
     from fluidnexus.viewer import open_viewer
 
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
+    port = free_port()
     served = open_viewer(list(two_runs), port=port)
     try:
         viewer = served.viewer
@@ -83,9 +81,7 @@ def test_frusta_show_their_videos_frame_at_the_slider(tmp_path, make_video):
     make_video(tmp_path / "scene" / "videos" / "front.mp4", frames=4, width=64, height=48, channels=3)
     scene = write_scene(tmp_path / "scene", [("front", "input", ring_camera(0), "videos/front.mp4")])
     run = write_run(tmp_path / "run", scene, [tiny_state(t) for t in range(4)], h=0.1, dt=1 / 25)
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
+    port = free_port()
     served = open_viewer([run], port=port)
     try:
         viewer = served.viewer
@@ -115,9 +111,7 @@ def test_the_static_layer_is_shown_once_read(tmp_path):
                                  np.tile([1.0, 0, 0, 0], (n, 1)).astype(np.float32), np.full(n, 0.5, np.float32),
                                  np.full((n, 1), 0.3, np.float32), np.zeros(1, np.float32),
                                  {"volume": [[0] * 3, [1] * 3]}))
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
+    port = free_port()
     served = open_viewer([run], port=port)
     try:
         assert served.viewer.static_loaded.wait(60)
@@ -138,9 +132,7 @@ def test_an_empty_frame_shows_nothing(tmp_path):
     empty = FrameState(1, e3, e3, e3, np.zeros((0, 1), np.float32), e3, e4, np.zeros(0, np.float32))
     scene = write_scene(tmp_path / "scene", [("front", "input", ring_camera(0), None)])
     run = write_run(tmp_path / "run", scene, [tiny_state(0), empty], h=0.1, dt=1 / 25)
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
+    port = free_port()
     served = open_viewer([run], port=port)
     try:
         viewer = served.viewer

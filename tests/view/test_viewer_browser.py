@@ -12,6 +12,7 @@ from fluidnexus.state import FrameState
 
 from handmade_run import write_run
 from handmade_scene import ring_camera, write_scene
+from view.ports import free_port
 
 pytest.importorskip("viser", reason="viser is not installed (pip install 'fluidnexus[view]')")
 from view.browser import Chromium, find_chromium  # noqa: E402 (needs websockets, which viser brings)
@@ -48,14 +49,6 @@ def blob_run(tmp_path_factory):
                                         ("side", "novel", ring_camera(90), None)],
                         ground_truth=[("back", ring_camera(200), "videos/back.mp4")], frame_count=FRAMES)
     return write_run(tmp / "run", scene, [blob_state(t) for t in range(FRAMES)], h=0.1, dt=1 / 25)
-
-
-def free_port() -> int:
-    import socket
-
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def projected_box(frame: int, fov: float) -> tuple[slice, slice]:
