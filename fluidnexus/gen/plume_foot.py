@@ -119,8 +119,8 @@ def plume_foot(scene: Scene, view_name: str, camera: Camera, footage: np.ndarray
     down = down_in_image(camera, centre, depth, normal, 0.05 * depth)
     across = np.array([-down[1], down[0]])
     along = uv @ down
-    extent = float(np.percentile(along, FOOT_PERCENTILE) - along.min())
     s_foot = float(np.percentile(along, FOOT_PERCENTILE))
+    extent = s_foot - float(along.min())
     band = uv[along >= s_foot - max(MIN_BAND_PIXELS, FOOT_BAND * extent)]
     lateral = band @ across
     pixel = s_foot * down + float(np.median(lateral)) * across
@@ -141,13 +141,13 @@ def plume_foot(scene: Scene, view_name: str, camera: Camera, footage: np.ndarray
                                                            "floor in scene.json")
     else:
         method = "input view: the foot of the earliest smoke cast onto the floor"
-    if scene.volume is not None:
-        lo, hi = np.asarray(scene.volume.min), np.asarray(scene.volume.max)
-        tol = 1e-6 * float(np.max(hi - lo))
-        if np.any(hit < lo - tol) or np.any(hit > hi + tol):
-            raise InputError(scene.root / SCENE_FILE, "floor", f"{where} meets the floor at "
-                                                               f"{np.round(hit, 4).tolist()}, outside the volume "
-                                                               f"{list(scene.volume.min)}..{list(scene.volume.max)}")
+        if scene.volume is not None:
+            lo, hi = np.asarray(scene.volume.min), np.asarray(scene.volume.max)
+            tol = 1e-6 * float(np.max(hi - lo))
+            if np.any(hit < lo - tol) or np.any(hit > hi + tol):
+                raise InputError(scene.root / SCENE_FILE, "floor", f"{where} meets the floor at "
+                                                                   f"{np.round(hit, 4).tolist()}, outside the volume "
+                                                                   f"{list(scene.volume.min)}..{list(scene.volume.max)}")
     hit_depth = float(camera.project(hit[None])[1][0])
     half_width = max(1.0, float(np.sqrt(2.0) * np.std(lateral)))  # a uniform disk's rms, as the hull finder
     radius = half_width * hit_depth / float(camera.K[0, 0])
