@@ -32,8 +32,18 @@ from fluidnexus.calibrate.assemble import PROTOCOLS
                    "'fluidnexus background --plate' would (without it, run fluidnexus background later).")
 @click.option("--views", type=int, default=5, show_default=True, help="Cameras on the arc, the input included.")
 @click.option("--arc-deg", type=float, default=120.0, show_default=True, help="Angle the arc spans.")
-@click.option("--distance", type=float, default=1.2, show_default=True, help="Camera-to-plume-axis distance, m.")
-@click.option("--camera-height", type=float, help="Camera height above the source, m (default: source at 90%).")
+@click.option("--distance", type=float,
+              help="Camera-to-plume-axis distance of --video's arc rig, m (default 1.2; with --tilt-deg or "
+                   "--horizon-row it follows from the height and the tilt).")
+@click.option("--camera-height", type=float,
+              help="--video: the camera's height above the floor the plume stands on, m (the floor is the source's "
+                   "level; default: the source at 90 % of the image height; required with --tilt-deg, --horizon-row).")
+@click.option("--tilt-deg", type=float,
+              help="--video: the camera's pitch down from level, degrees (0-90): the scene gets a floor, the arc "
+                   "stands around where the centre ray meets it, and synth finds the plume's foot on it.")
+@click.option("--horizon-row", type=float,
+              help="--video: the image row of the horizon (pixels from the top; above the centre row), instead of "
+                   "--tilt-deg: tan(tilt) = (H/2 - row) / fy.")
 @click.option("--source", metavar="CX,CY,CZ,R",
               help="--from-pinf, --sample: the smoke inflow's disk (centre and radius) in the imported file's own "
                    "frame and unit. A PINF capture declares none: without it synth and recon find the inflow in the "
@@ -64,6 +74,7 @@ def calibrate(out: Path, overwrite: bool, to_pinf: Path | None, paths: tuple[Pat
     fluidnexus calibrate --images cam*.png --media footage/ --out scene
     fluidnexus calibrate --video plume.mp4 --fov-deg 60 --rig arc --views 5 --arc-deg 120 --out scene
     fluidnexus calibrate --video plume.mp4 --plate empty_backdrop.png --fov-deg 60 --out scene
+    fluidnexus calibrate --video plume.mp4 --fov-deg 60 --camera-height 1.1 --tilt-deg 25 --out scene
     """
     from fluidnexus.calibrate.make_scene import make_scene
 

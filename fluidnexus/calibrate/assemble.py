@@ -11,7 +11,8 @@ import numpy as np
 from ..atomic import atomic_dir
 from ..camera import Camera
 from ..errors import InputError
-from ..scene import GroundTruth, Scene, Source, View, Volume, load_ground_truth, load_scene, save_scene
+from ..scene import (Floor, GroundTruth, Scene, Source, View, Volume, load_ground_truth, load_scene,
+                     save_scene)
 from ..scenery.obstacles import place_obstacles
 from ..world_frame import SourceFrame
 
@@ -109,7 +110,8 @@ def _place(media: Path, folder: Path, name: str, link: bool) -> str:
 
 def write_scene(out: Path, fps: float, frame_count: int, views, ground_truth, volume: Volume | None,
                 source: Source | None, extra: dict | None = None, link: bool = False,
-                source_frame: SourceFrame | None = None, backdrop_color=None, obstacles=()) -> Scene:
+                source_frame: SourceFrame | None = None, backdrop_color=None, obstacles=(),
+                floor: Floor | None = None) -> Scene:
     """Write a complete, validated scene folder at ``out`` atomically and return it (loaded back).
 
     Args:
@@ -119,6 +121,7 @@ def write_scene(out: Path, fps: float, frame_count: int, views, ground_truth, vo
         source_frame, backdrop_color: of an imported scene (see :class:`~fluidnexus.scene.Scene`).
         obstacles: ``calibrate --obstacle`` values in the imported file's frame (``obstacles.parse_option``);
             converted by ``source_frame``, meshes written under ``obstacles/``.
+        floor: the plane the plume stands on, where the calibration knows it (None: the volume's bottom face).
     """
     out = Path(out)
     with atomic_dir(out) as tmp:
@@ -132,7 +135,7 @@ def write_scene(out: Path, fps: float, frame_count: int, views, ground_truth, vo
                         for g, m in ground_truth)
         bodies = place_obstacles(obstacles, tmp, source_frame, volume)
         save_scene(Scene(tmp, float(fps), int(frame_count), tuple(placed), volume, source, extra or {},
-                         source_frame=source_frame, backdrop_color=backdrop_color, obstacles=bodies),
+                         source_frame=source_frame, backdrop_color=backdrop_color, obstacles=bodies, floor=floor),
                    gts, tmp)
         try:
             load_scene(tmp)

@@ -202,17 +202,22 @@ def _from_video(out: Path, opts) -> Scene:
         image = read_plate_file(opts["plate"], info.width, info.height, "--plate", f"the video {video}")
         plate = given_plate(opts["plate"], image, video, info.frame_count)
     rig = arc_rig(info.width, info.height, opts["fov_deg"], opts["views"], opts["arc_deg"], opts["distance"],
-                  opts["camera_height"], opts["source_radius"], input_name=video.stem)
+                  opts["camera_height"], opts["source_radius"], input_name=video.stem, tilt_deg=opts["tilt_deg"],
+                  horizon_row=opts["horizon_row"])
     views = [(View(video.stem, "input", rig.input_camera), video)]
     views += [(View(n, "novel", cam, provenance={"rig": "arc", "azimuth_deg": rig.azimuths_deg[n]}), None)
               for n, cam in rig.novel.items()]
     rate = opts["fps"] or info.fps
     if not rate:
         raise InputError(video, "fps", "the footage does not state a frame rate; pass --fps")
+    distance = float(np.linalg.norm(rig.input_camera.center[[0, 2]]))
     extra = {"rig": {"kind": "arc", "fov_deg": opts["fov_deg"], "views": opts["views"], "arc_deg": opts["arc_deg"],
-                     "distance": opts["distance"]}}
+                     "distance": distance}}
+    if rig.floor is not None:
+        extra["rig"].update(camera_height=opts["camera_height"], tilt_deg=rig.tilt_deg,
+                            horizon_row=opts["horizon_row"])
     scene = write_scene(out, rate, info.frame_count, views, [], rig.volume, rig.source, extra, link=opts["link"],
-                        obstacles=opts["obstacles"])
+                        obstacles=opts["obstacles"], floor=rig.floor)
     if plate is None:
         log.info("no --plate: 'fluidnexus background %s' estimates the clean plate from the footage", out)
         return scene
