@@ -45,6 +45,7 @@ class ArcRig:
     azimuths_deg: dict[str, float]
     volume: Volume
     source: Source | None
+    distance: float  # of every camera from the y axis, m
     floor: Floor | None = None
     tilt_deg: float | None = None
 
@@ -100,7 +101,7 @@ def arc_rig(width: int, height: int, fov_deg: float, views: int = 5, arc_deg: fl
     volume = Volume((-half, 0.0, -half), (half, h + 0.5 * height * distance / fx, half))
     input_camera = cams.pop(input_name)
     radius = SCALARFLOW_SOURCE_RADIUS * volume_factor(volume) if source_radius is None else float(source_radius)
-    return ArcRig(input_camera, cams, azimuths, volume, Source((0.0, 0.0, 0.0), radius))
+    return ArcRig(input_camera, cams, azimuths, volume, Source((0.0, 0.0, 0.0), radius), distance)
 
 
 def _circle(width: int, height: int, fx: float, views: int, arc_deg: float, distance: float, h: float,
@@ -140,4 +141,4 @@ def _floor_rig(width: int, height: int, fx: float, views: int, arc_deg: float, d
     near = distance - h / math.tan(below) if below < 0.5 * math.pi else distance
     half = max(0.5 * width * math.hypot(h, distance) / fx, near)
     volume = Volume((-half, 0.0, -half), (half, top, half))
-    return ArcRig(cams.pop(input_name), cams, azimuths, volume, None, Floor((0.0, 0.0, 0.0)), tilt)
+    return ArcRig(cams.pop(input_name), cams, azimuths, volume, None, distance, Floor((0.0, 0.0, 0.0)), tilt)

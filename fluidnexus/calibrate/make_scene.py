@@ -59,6 +59,9 @@ def make_scene(out: Path, paths: tuple[Path, ...], opts: dict, overwrite: bool =
     if opts["plate"] is not None and chosen[0] != "video":
         raise InputError(None, "--plate", "applies to --video only; give the plates of other scenes with "
                                           "'fluidnexus background SCENE --plate NAME=FILE'")
+    for option in ("tilt_deg", "horizon_row"):
+        if opts[option] is not None and chosen[0] != "video":
+            raise InputError(None, "--" + option.replace("_", "-"), "applies to --video only (the phone's tilt)")
     if opts["source"] is not None and chosen[0] not in ("from_pinf", "sample"):
         raise InputError(None, "--source", "applies to --from-pinf and --sample (other scenes: scene.json source)")
     if opts["metres_per_unit"] is not None:
@@ -210,9 +213,8 @@ def _from_video(out: Path, opts) -> Scene:
     rate = opts["fps"] or info.fps
     if not rate:
         raise InputError(video, "fps", "the footage does not state a frame rate; pass --fps")
-    distance = float(np.linalg.norm(rig.input_camera.center[[0, 2]]))
     extra = {"rig": {"kind": "arc", "fov_deg": opts["fov_deg"], "views": opts["views"], "arc_deg": opts["arc_deg"],
-                     "distance": distance}}
+                     "distance": rig.distance}}
     if rig.floor is not None:
         extra["rig"].update(camera_height=opts["camera_height"], tilt_deg=rig.tilt_deg,
                             horizon_row=opts["horizon_row"])

@@ -115,3 +115,10 @@ def test_calibrate_video_on_a_floor_cli(tmp_path, make_video):
     rig = scene.extra["rig"]
     assert rig["tilt_deg"] == 30 and rig["camera_height"] == 1.5
     assert rig["distance"] == pytest.approx(1.5 / math.tan(math.radians(30)))
+
+
+def test_tilt_applies_to_a_video_only(tmp_path):
+    from clirun import assert_clean_failure, invoke
+
+    assert_clean_failure(invoke("calibrate", "--sample", "scalarflow", "--tilt-deg", "20", "--out", tmp_path / "s"),
+                         "--tilt-deg", "--video only")
