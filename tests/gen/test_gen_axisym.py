@@ -93,3 +93,21 @@ def test_depth_blur_grows_with_the_turn():
     near, far = (detail_blur_px(inp.camera, ring_camera(a), FOOT, 0.02) for a in (10.0, 80.0))
     assert detail_blur_px(inp.camera, inp.camera, FOOT, 0.02) == pytest.approx(0.0, abs=1e-9)
     assert 0 < near < far
+
+
+@pytest.mark.parametrize("azimuth, elevation, distance, focal", [(40, 10, 1.2, 70.0), (-70, 25, 0.9, 55.0),
+                                                                  (120, -5, 1.6, 90.0)])
+def test_a_view_holds_the_total_the_input_implies(azimuth, elevation, distance, focal):
+    """Optically thin smoke: a view's summed intensity is the mass weighted by its pixels per solid angle over r^2
+    (benchmarks/brightness.py), whatever the direction; the synthesised view keeps the input's (measured 1.01-1.02,
+    the true render 1.00-1.01), at another distance, focal length and elevation."""
+    from benchmarks.brightness import brightness_ratios
+
+    src = ring_camera(0.0)
+    a, e = math.radians(azimuth), math.radians(elevation)
+    eye = np.array([math.sin(a) * math.cos(e), math.sin(e), math.cos(a) * math.cos(e)]) * distance + [0, 0.25, 0]
+    target = Camera.look_at(48, 72, focal, eye, [0.0, 0.25, 0.0])
+    inp = SynthesisInput(render(src, lambda y: 0.0 * y)[None], src, Source(tuple(FOOT), 0.03))
+    out = make_synthesizer("axisym").synthesize(inp, target)
+    ratio = brightness_ratios(inp.video, src, {"t": out}, {"t": target}, FOOT)["t"][0]
+    assert abs(ratio - 1) < 0.05, ratio
