@@ -10,7 +10,9 @@ from fluidnexus.scene import load_scene
 from fluidnexus.video import read_footage, write_video
 
 FOOT_TOLERANCE_M = 0.03  # one image row at the foot covers 2.5 cm of floor along the view (1.2 m away, 28 degrees)
-BRIGHTNESS_TOLERANCE = 0.1  # of the total the input view implies (measured: synth 0.93-0.98, true render 0.97-1.02)
+# of the total the input view implies; measured: synth 0.93-0.98 (the foot found 2 cm off and the 8-bit H.264 round
+# trip of faint smoke; tests/gen/test_gen_axisym.py holds the synthesiser alone within 5 %), true render 0.97-1.02
+BRIGHTNESS_TOLERANCE = 0.1
 
 
 @pytest.fixture(scope="module")
