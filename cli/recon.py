@@ -72,7 +72,7 @@ def recon(scene_dir: Path, out: Path, frames_text, resolution, channels, config_
     values["resolution"] = resolve_resolution(resolution, scene)
     values["channels"] = 1 if channels == "gray" else 3
     cfg = config_for_scene(scene, values, config_file)  # lengths follow the scene's size unless given
-    loaded = load_model_file(model_file, ambient_air=False)  # its physics only: recon emits as the scene says
+    loaded = load_model_file(model_file, rollout=False)  # its physics only: recon emits as the scene says
     start_engine(arch)
     setup = default_setup(scene, cfg, None if loaded is None else loaded.model)
     summary = reconstruct(scene, out, setup, resume=resume, max_memory=limit)

@@ -18,11 +18,12 @@ class ModelFile:
     window: tuple[int, int | None] | None
 
 
-def load_model_file(path, ambient_air: bool) -> ModelFile | None:
+def load_model_file(path, rollout: bool) -> ModelFile | None:
     """The model.json at ``path`` (``fluidnexus diagnose`` writes one), or None without a path.
 
-    ``ambient_air``: whether the command simulates the gas in ambient air (predict, interact); recon does not
-    (docs/simulator.md, "Model structures") and refuses such a model.
+    ``rollout``: whether the command rolls the model out (predict, interact: the gas in ambient air and the
+    entrainment included); recon's fits step the paper's gas alone (docs/simulator.md, "Model structures") and it
+    refuses a model with either.
     """
     if path is None:
         return None
@@ -33,7 +34,10 @@ def load_model_file(path, ambient_air: bool) -> ModelFile | None:
         model = ModelConfig.from_dict(data.get("model", {}))
     except (OSError, ValueError, TypeError, KeyError) as err:
         raise InputError(path, "model", str(err)) from None
-    if model.air is not None and not ambient_air:
+    if model.entrainment is not None and not rollout:
+        raise InputError(path, "model.entrainment", "recon fits the paper's gas without entrainment, which predict "
+                         "and interact roll out: reconstruct without this model and pass it to predict or interact")
+    if model.air is not None and not rollout:
         raise InputError(path, "model.structure", "recon fits the paper's gas; this model is the gas in ambient air "
                          "(ambient_air), which predict and interact simulate: reconstruct without it and pass it "
                          "to predict or interact")

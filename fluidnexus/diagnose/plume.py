@@ -16,9 +16,9 @@ from itertools import islice
 
 import numpy as np
 
-from fluidnexus.engine import (AirDomain, AmbientAir, Buoyancy, Drag, ModelConfig, PBFSimulator, PhysicalParticles,
-                               SolverConfig, SourceDisk, Viscosity, Vorticity, prune, rest_density_for_lattice,
-                               step_particles)
+from fluidnexus.engine import (AirDomain, AmbientAir, Buoyancy, Drag, Entrainment, ModelConfig, PBFSimulator,
+                               PhysicalParticles, SolverConfig, SourceDisk, Viscosity, Vorticity, prune,
+                               rest_density_for_lattice, step_particles)
 from fluidnexus.scenery.world import Obstacles
 
 from .observe import splat_points
@@ -31,7 +31,10 @@ EXTENSIONS = {
     "viscosity": {"c": 0.0},                  # XSPH viscosity coefficient
     "dissipation": {"rate": 0.0},             # smoke fading [1/s]
     "swirl": {"omega": 0.0},                  # inflow angular velocity about +y [rad/s]
+    "entrainment": {"alpha": 0.0},            # entrainment coefficient (engine/entrainment.py; paper_gas only)
 }
+#: The extensions that extend only the paper's gas (the gas in ambient air entrains its own air).
+PAPER_GAS_ONLY = ("entrainment",)
 #: The base structures (engine/ambient.py): the paper's gas in empty space, the gas in ambient air.
 STRUCTURES = ("paper_gas", "ambient_air")
 #: The ambient-air structure's lattice ratios follow this multiple of ``--spacing`` (0.03 m for the default 0.02 m):
@@ -83,7 +86,8 @@ class PlumeParams:
             terms.append(Vorticity(epsilon=float(self.ext("vorticity", "epsilon"))))
         if "viscosity" in self.extensions:
             terms.append(Viscosity(c=float(self.ext("viscosity", "c"))))
-        return ModelConfig(tuple(terms))
+        entrainment = Entrainment(float(self.ext("entrainment", "alpha"))) if "entrainment" in self.extensions else None
+        return ModelConfig(tuple(terms), entrainment=entrainment)
 
     def with_gain(self, gain: float) -> "PlumeParams":
         return replace(self, gain=float(gain))
@@ -200,7 +204,7 @@ class PlumeSimulator:
             sim = self._sims[kinds] = PBFSimulator(capacity, self.setup.solver_for(model.structure), model)
             sim.set_obstacle(self.obstacle)
         else:
-            sim.load_theta(model.to_vector())
+            sim.set_model(model)  # the parameters, and the entrainment, which is no kernel term
         return sim
 
     def frames(self, params: PlumeParams) -> Iterator[tuple[np.ndarray, np.ndarray]]:

@@ -47,10 +47,21 @@ def model_dict(fit, setup, emission) -> dict:
             "extensions": {k: _jsonable(v) for k, v in p.extensions.items()}}
 
 
+def width_slope(q) -> float | None:
+    """The least-squares slope of the width against the front height (observe.Observables) over the frames where
+    both are known, or None (fewer than three)."""
+    ok = np.isfinite(q.front) & np.isfinite(q.width)
+    if ok.sum() < 3 or np.ptp(q.front[ok]) <= 0:
+        return None
+    return float(np.polyfit(q.front[ok], q.width[ok], 1)[0])
+
+
 def write_outputs(out_dir: Path, observed, bases: dict, structure: str, fits: dict, judged: dict, finding: str,
-                  train, validate, fitter, spread: tuple[int, float], emission, seconds: float) -> dict:
-    """``bases``: the control fit of each structure; ``structure``: the chosen one; ``emission``: the source's
-    emission window (emission.Emission)."""
+                  train, validate, fitter, spread: tuple[int, float], emission, seconds: float,
+                  explanations: list) -> dict:
+    """``bases``: the control fit of each structure; ``structure``: the chosen one; ``fits`` and ``judged``: the
+    candidates on it; ``emission``: the source's emission window (emission.Emission); ``explanations``: every
+    explanation that passes, (structure, term, validation error), the chosen first (run.explain)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     a = train[0]
     va = np.arange(validate[0] - a, validate[1] - a)
@@ -58,8 +69,10 @@ def write_outputs(out_dir: Path, observed, bases: dict, structure: str, fits: di
     chosen = fits[finding] if finding != "none" else base
     unclear = indistinct(judged, spread)
     candidates = [{"effect": n, "params": _jsonable(fits[n].params.extensions[n]),
+                   "train_before": judged[n].train_before, "train_after": judged[n].train_after,
                    "validate_before": judged[n].before, "validate_after": judged[n].after,
                    "selected": n == finding, "within_spread": n in unclear} for n in fits]
+    plots = _plots(out_dir, observed, bases, chosen, finding, train, validate)
     b_err = float(base.errors[va].mean())
     report = {"finding": {"effect": finding,
                           "params": _jsonable(chosen.params.extensions[finding]) if finding != "none" else {},
@@ -69,12 +82,16 @@ def write_outputs(out_dir: Path, observed, bases: dict, structure: str, fits: di
               "windows": {"train": list(train), "validate": list(validate)},
               "views": list(observed.names),
               "emission": emission.to_dict(),
+              "explanations": [{"structure": st, "effect": name, "validate_error": err}
+                               for st, name, err in explanations],
+              "width_slope": {"observed": width_slope(plots["observed"]),
+                              "base": width_slope(plots["models"][structure]),
+                              "chosen": width_slope(plots["chosen"])},
               "structure": {"name": structure, "params": structure_params(base.params),
                             "gain": {"metric": "validation_image_error",
                                      "before": float(bases["paper_gas"].errors[va].mean()), "after": b_err}}}
     write_json(out_dir / "report.json", report)
     write_json(out_dir / "model.json", model_dict(chosen, fitter.sim.setup, emission))
-    plots = _plots(out_dir, observed, bases, chosen, finding, train, validate)
     text = _markdown(report, observed, bases, structure, fits, judged, finding, va, plots, fitter, spread, emission,
                      seconds)
     (out_dir / "report.md").write_text(text)
@@ -214,18 +231,22 @@ def _markdown(report, observed, bases, structure, fits, judged, finding, va, plo
                   f"{100 * (o.centroid[-1] - s1.centroid[-1])[0]:+.1f} / "
                   f"{100 * (o.centroid[-1] - s1.centroid[-1])[1]:+.1f} / "
                   f"{100 * (o.centroid[-1] - s1.centroid[-1])[2]:+.1f} cm (x / y / z) from the real one.", ""]
+        if finding == "entrainment":
+            lines += _entrainment_text(report)
     lines += ["## Candidates (judged on the validation frames only)", "",
               "| effect | fitted parameters | training error before | after | validation error before | after | "
               "gain | p | selected |", "|---|---|---|---|---|---|---|---|---|"]
-    t0 = fitter.train_error(base)
     for c in report["candidates"]:
         j = judged[c["effect"]]
-        lines.append(f"| {c['effect']} | {c['params']} | {t0:.4f} | {fitter.train_error(fits[c['effect']]):.4f} | "
+        lines.append(f"| {c['effect']} | {c['params']} | {j.train_before:.4f} | {j.train_after:.4f} | "
                      f"{j.before:.4f} | {j.after:.4f} | {100 * j.relative_gain:.1f} % | {j.p_value:.2g} | "
                      f"{'yes' if c['selected'] else 'no'} |")
     same = (f"the best of them has a validation error {100 * spread[1]:.1f} % below the control's. A candidate's "
             "gain of that size could come from where its search stopped rather than from its term; read such a "
             "finding with care." if spread[1] > 0 else "none of them has a lower validation error than the control.")
+    lines += ["", "A candidate counts only if it also lowers the training error (the frames it was fitted to): one "
+              "that does not has not found its effect there, whatever its validation gain."]
+    lines += _explanations_text(report["explanations"])
     lines += ["", f"How far the training frames pin the base model: {spread[0]} fits of the base model alone "
               f"(no extension, from the base and control searches) come within {100 * SPREAD_TOLERANCE:.0f} % of "
               f"the control's training error; {same}"]
@@ -236,6 +257,31 @@ def _markdown(report, observed, bases, structure, fits, judged, finding, va, plo
     lines += ["", f"Metric: {report['finding']['gain']['metric']} = the {_METRIC_TEXT}.", "", "## Plots", ""]
     lines += [f"- {title}: ![{title}]({name})" for name, title in plots["files"].items()]
     return "\n".join(lines) + "\n"
+
+
+def _explanations_text(explanations: list) -> list[str]:
+    """report.md's paragraph on explanations of the same miss (more than one passing)."""
+    if len(explanations) < 2:
+        return []
+    items = "; ".join(f"{STRUCTURE_LABELS[e['structure']]}"
+                      f"{'' if e['effect'] == 'none' else ' with ' + e['effect']} (validation error "
+                      f"{e['validate_error']:.4f})" for e in explanations)
+    return ["", f"More than one explanation passes, and they explain the same miss: {items}. The one with the lowest "
+                "validation error is reported above."]
+
+
+def _entrainment_text(report) -> list[str]:
+    """report.md's sentences on a fitted entrainment: alpha against plumes' range, the width slopes."""
+    from fluidnexus.engine.entrainment import PLUME_RANGE
+
+    alpha = report["finding"]["params"]["alpha"]
+    ws = report["width_slope"]
+    slopes = ", ".join(f"{k} {v:.3f}" for k, v in ws.items() if v is not None)
+    lo, hi = PLUME_RANGE
+    where = "within" if lo <= alpha <= hi else "below" if alpha < lo else "above"
+    return [f"The plume entrains ambient air: the fitted entrainment coefficient alpha = {alpha:.3f} is {where} the "
+            f"range reported for turbulent plumes ({lo}-{hi}). Width against front height, least-squares slope "
+            f"(m per m): {slopes}.", ""]
 
 
 def _base_text(p) -> str:

@@ -18,9 +18,9 @@ from .emission import emission_window
 from .footage import run_layer, smoke_images, usable
 from .observe import Observed, observables
 from .parallel import FitPool
-from .plume import AIR_SPACING, EXTENSIONS, STRUCTURES, PlumeSetup, PlumeSimulator
+from .plume import AIR_SPACING, EXTENSIONS, PAPER_GAS_ONLY, STRUCTURES, PlumeSetup, PlumeSimulator
 from .report import write_outputs
-from .search import SPREAD_TOLERANCE, Fitter, fit_candidate, fit_structure, judge, search_spread
+from .search import SPREAD_TOLERANCE, Fitter, ablate, fit_candidate, fit_structure, judge, search_spread
 
 log = logging.getLogger("fluidnexus")
 
@@ -140,34 +140,68 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
             log.info("control refit (%s, alpha only): alpha %.4f, train error %.4f, validation error %.4f",
                      structure, control.params.alpha, fitter.train_error(control), control.errors[va].mean())
             bases[structure] = control
-        # the structure is chosen like a term: ambient_air if it lowers the validation error clearly (search.judge)
-        structure_judged = judge(bases["paper_gas"].errors[va], bases["ambient_air"].errors[va])
-        structure = "ambient_air" if structure_judged.passes else "paper_gas"
-        log.info("structure: %s (validation error paper_gas %.4f, ambient_air %.4f: gain %.1f %%, p %.2g)",
-                 structure, structure_judged.before, structure_judged.after, 100 * structure_judged.relative_gain,
+        # the ambient-air structure is judged like a term against the paper's gas (search.judge)
+        structure_judged = judge(bases["paper_gas"], bases["ambient_air"], tr, va)
+        log.info("structure ambient_air against paper_gas: training error %.4f -> %.4f, validation error %.4f -> "
+                 "%.4f (gain %.1f %%, p %.2g)", structure_judged.train_before, structure_judged.train_after,
+                 structure_judged.before, structure_judged.after, 100 * structure_judged.relative_gain,
                  structure_judged.p_value)
-        base = bases[structure]
+        # the terms are tried on the paper's gas always, and on the gas in ambient air where it passes: a term and
+        # the structure can explain the same miss, and the explanation with the lower validation error wins
+        tried = {"paper_gas": candidates}
+        if structure_judged.clear_gain:
+            tried["ambient_air"] = tuple(n for n in candidates if n not in PAPER_GAS_ONLY)
+        jobs_list = [(st, name) for st, names in tried.items() for name in names]
         obs_o = observables(observed.images, cams, observed.fps)
-        base_o = observables(base.images, cams, observed.fps)
-        drift = _drift_velocity(obs_o.centroid[tr] - base_o.centroid[tr], observed.fps)
-        fits = dict(zip(candidates, pool.map(fit_candidate, [(base, name, maxfev, drift) for name in candidates])))
-    judged = {}
-    for name in candidates:
-        judged[name] = judge(base.errors[va], fits[name].errors[va])
-        log.info("candidate %s: %s, training error %.4f -> %.4f, validation error %.4f -> %.4f (gain %.1f %%, "
-                 "p %.2g)", name, fits[name].params.extensions[name], fitter.train_error(base),
-                 fitter.train_error(fits[name]), judged[name].before, judged[name].after,
-                 100 * judged[name].relative_gain, judged[name].p_value)
+        drift = {st: _drift_velocity(obs_o.centroid[tr] - observables(bases[st].images, cams, observed.fps)
+                                     .centroid[tr], observed.fps) for st in tried}
+        results = pool.map(fit_candidate, [(bases[st], name, maxfev, drift[st]) for st, name in jobs_list])
+        ablations = pool.map(ablate, [(fit,) for fit in results])
+    fits = {st: {} for st in tried}
+    judged = {st: {} for st in tried}
+    for (st, name), fit, ablated in zip(jobs_list, results, ablations):
+        fits[st][name] = fit
+        judged[st][name] = judge(bases[st], fit, tr, va, ablated)
+    for st, named in judged.items():
+        for name, j in named.items():
+            log.info("candidate %s on %s: %s, training error %.4f -> %.4f, validation error %.4f -> %.4f (gain "
+                     "%.1f %%, p %.2g; without its term %.4f)", name, st, fits[st][name].params.extensions[name],
+                     j.train_before, j.train_after, j.before, j.after, 100 * j.relative_gain, j.p_value,
+                     j.ablated.before)
+    explanations = explain(bases, structure_judged, fits, judged, va)
+    structure, finding = explanations[0][:2]
+    base = bases[structure]
     spread = search_spread(fitter, base, va)
     log.info("search spread: %d base-model fits within %.0f %% of the control's training error reach a "
              "validation error %.1f %% below the control's", spread[0], 100 * SPREAD_TOLERANCE, 100 * spread[1])
-    passing = [n for n in candidates if judged[n].passes]
-    finding = max(passing, key=lambda n: judged[n].relative_gain) if passing else "none"
-    report = write_outputs(out_dir, observed, bases, structure, fits, judged, finding, (a, b), (c, d), fitter,
-                           spread, emission, time.perf_counter() - started)
+    log.info("explanations that pass (lowest validation error first): %s",
+             "; ".join(f"{st} + {name}: {err:.4f}" for st, name, err in explanations))
+    report = write_outputs(out_dir, observed, bases, structure, fits[structure], judged[structure], finding, (a, b),
+                           (c, d), fitter, spread, emission, time.perf_counter() - started, explanations)
     log.info("diagnose: finding %s (%d rollouts, %.0f s)", finding, fitter.evaluations,
              time.perf_counter() - started)
     return report
+
+
+def explain(bases: dict, structure_judged, fits: dict, judged: dict, validate: np.ndarray) -> list[tuple]:
+    """Every explanation of the footage that passes, as (structure, term or "none", validation error), the lowest
+    validation error first; the paper's gas with no term when none passes (then the only entry). The paper's gas
+    with its best passing term, and the gas in ambient air (when it passes against the paper's gas) with its best
+    passing term or none, are explanations of the same miss: the footage decides between them."""
+    def best(st):
+        passing = [n for n, j in judged.get(st, {}).items() if j.passes]
+        if not passing:
+            return st, "none", float(bases[st].errors[validate].mean())
+        name = max(passing, key=lambda n: judged[st][n].relative_gain)
+        return st, name, float(fits[st][name].errors[validate].mean())
+
+    out = []
+    paper = best("paper_gas")
+    if paper[1] != "none":
+        out.append(paper)
+    if structure_judged.clear_gain:
+        out.append(best("ambient_air"))
+    return sorted(out, key=lambda e: e[2]) or [paper]
 
 
 def _describe(params) -> str:

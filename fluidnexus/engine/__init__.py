@@ -6,6 +6,7 @@ from .runtime import current, init, is_running, real, resolve_arch
 from .forces import TERMS, Buoyancy, Drag, Viscosity, Vorticity, Wind, register_term
 from .model import ModelConfig, SolverConfig, rest_density_for_lattice
 from .ambient import STRUCTURES, AirDomain, AirState, AmbientAir
+from .entrainment import Entrainment
 from .neighbors import NeighborOverflow, NeighborTable
 from .pbf import PBFSimulator, step_particles
 from .query import FieldQuery, divergence_on_grid, mean_abs_divergence
@@ -15,7 +16,7 @@ from .particles import PhysicalParticles, VisualParticles, prune
 from .emitter import SourceDisk, cylinder_lattice, scalarflow_initial_lattice, stabilize
 
 __all__ = ["init", "current", "is_running", "real", "resolve_arch", "TERMS", "Buoyancy", "Drag", "Viscosity", "Vorticity",
-           "Wind", "register_term", "ModelConfig", "STRUCTURES", "AirDomain", "AirState", "AmbientAir", "SolverConfig",
+           "Wind", "register_term", "ModelConfig", "STRUCTURES", "AirDomain", "AirState", "AmbientAir", "Entrainment", "SolverConfig",
            "rest_density_for_lattice",
            "NeighborOverflow", "NeighborTable", "PBFSimulator", "step_particles", "FieldQuery",
            "divergence_on_grid", "mean_abs_divergence", "simulate_step", "velocity_at", "density_at", "advect",

@@ -16,11 +16,11 @@ from .query import FieldQuery
 
 class _SimulateStep(torch.autograd.Function):
     @staticmethod
-    def forward(ctx, p0, u0, theta, sim, age, smoke):
+    def forward(ctx, p0, u0, theta, sim, age, smoke, volume):
         sim.load_theta(theta.detach())
-        sim.load(p0, u0, age, smoke)
+        sim.load(p0, u0, age, smoke, volume)
         sim.forward()
-        ctx.sim, ctx.token, ctx.age, ctx.smoke = sim, sim.token, age, smoke
+        ctx.sim, ctx.token, ctx.age, ctx.smoke, ctx.volume = sim, sim.token, age, smoke, volume
         ctx.save_for_backward(p0, u0, theta)
         p1, u1 = sim.result()
         return p1, u1
@@ -31,15 +31,16 @@ class _SimulateStep(torch.autograd.Function):
         p0, u0, theta = ctx.saved_tensors
         if sim.token is not ctx.token:  # the fields hold another step: recompute this one (checkpointing)
             sim.load_theta(theta.detach())
-            sim.load(p0, u0, ctx.age, ctx.smoke)
+            sim.load(p0, u0, ctx.age, ctx.smoke, ctx.volume)
             sim.forward()
             ctx.token = sim.token
         gp, gu, gt = sim.backward(grad_p, grad_u)
-        return gp, gu, gt.to(theta.dtype), None, None, None
+        return gp, gu, gt.to(theta.dtype), None, None, None, None
 
 
 def simulate_step(p0: torch.Tensor, u0: torch.Tensor, params: torch.Tensor, sim: PBFSimulator,
-                  age: torch.Tensor | None = None, smoke: torch.Tensor | None = None):
+                  age: torch.Tensor | None = None, smoke: torch.Tensor | None = None,
+                  volume: torch.Tensor | None = None):
     """One PBF step ``p1, u1 = Sim(u0, p0)`` (FluidNexus Eq. S1-S3), differentiable w.r.t. p0, u0, params.
 
     Args:
@@ -48,11 +49,13 @@ def simulate_step(p0: torch.Tensor, u0: torch.Tensor, params: torch.Tensor, sim:
         sim: the simulator (capacity, solver constants, which terms).
         age: particle ages [N] s for the decaying buoyancy (default 0); not differentiated.
         smoke: smoke weights [N] (default 1; 0 marks ambient air, which buoyancy skips); not differentiated.
+        volume: rest volumes [N] (default 1; the entrainment term grows them, ``PBFSimulator.load``); not
+            differentiated.
 
     Returns:
         (p1 [N, 3], u1 [N, 3]).
     """
-    return _SimulateStep.apply(p0, u0, params, sim, age, smoke)
+    return _SimulateStep.apply(p0, u0, params, sim, age, smoke, volume)
 
 
 class _Interpolate(torch.autograd.Function):

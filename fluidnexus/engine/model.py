@@ -11,6 +11,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 import numpy as np
 
 from .ambient import AmbientAir, structure_from_dict, structure_to_dict
+from .entrainment import Entrainment
 from .forces import TERMS, Buoyancy, Drag
 from .sph import lattice_density
 
@@ -79,15 +80,19 @@ class ModelConfig:
 
     ``air`` selects the structure: None is the paper's gas (``paper_gas``: smoke particles in empty space), an
     :class:`~fluidnexus.engine.ambient.AmbientAir` the gas in ambient air (``ambient_air``, engine/ambient.py).
+    ``entrainment``: the paper's gas taking in ambient air between steps (engine/entrainment.py), or None.
     """
 
     terms: tuple = field(default_factory=lambda: (Buoyancy(), Drag()))
     air: AmbientAir | None = None
+    entrainment: Entrainment | None = None
 
     def __post_init__(self):
         kinds = [t.kind for t in self.terms]
         if len(set(kinds)) != len(kinds):
             raise ValueError(f"each term kind may appear once, got {kinds}")
+        if self.entrainment is not None and self.air is not None:
+            raise ValueError("entrainment is a term of the paper's gas; the gas in ambient air entrains its air")
 
     @classmethod
     def scalarflow(cls) -> "ModelConfig":
@@ -149,7 +154,8 @@ class ModelConfig:
         return replace(self, terms=tuple(terms))
 
     def to_dict(self) -> dict:
-        """Plain-dict form: ``{"terms": [{"kind": ..., <params>}, ...], "structure": {"name": ..., <params>}}``."""
+        """Plain-dict form: ``{"terms": [{"kind": ..., <params>}, ...], "structure": {"name": ..., <params>}}``,
+        plus ``"entrainment": {"alpha": ...}`` when the model has it."""
         out = []
         for t in self.terms:
             d = {"kind": t.kind}
@@ -157,7 +163,10 @@ class ModelConfig:
                 v = getattr(t, f.name)
                 d[f.name] = list(v) if isinstance(v, tuple) else v
             out.append(d)
-        return {"terms": out, "structure": structure_to_dict(self.air)}
+        out = {"terms": out, "structure": structure_to_dict(self.air)}
+        if self.entrainment is not None:
+            out["entrainment"] = self.entrainment.to_dict()
+        return out
 
     @classmethod
     def from_dict(cls, d: dict) -> "ModelConfig":
@@ -174,4 +183,10 @@ class ModelConfig:
             if unknown:
                 raise ValueError(f"unknown keys for term {kind!r}: {sorted(unknown)}")
             terms.append(cls_(**{k: tuple(v) if isinstance(v, list) else v for k, v in entry.items()}))
-        return cls(tuple(terms), structure_from_dict(d.get("structure", {"name": "paper_gas"})))
+        entrainment = d.get("entrainment")
+        if entrainment is not None:
+            unknown = set(entrainment) - {"alpha"}
+            if unknown:
+                raise ValueError(f"unknown keys for entrainment: {sorted(unknown)}")
+            entrainment = Entrainment(**entrainment)
+        return cls(tuple(terms), structure_from_dict(d.get("structure", {"name": "paper_gas"})), entrainment)

@@ -82,10 +82,12 @@ class ParticleSet:
 
 class PhysicalParticles(ParticleSet):
     """Physical particles: position [m], velocity [m/s], force (last step's external acceleration) [m/s^2],
-    age [s], smoke weight (1 = smoke, the default; 0 = ambient air, engine/ambient.py)."""
+    age [s], smoke weight (1 = smoke, the default; 0 = ambient air, engine/ambient.py), rest volume (1 = the
+    particle's own, the default; the entrainment term grows it, engine/entrainment.py)."""
 
     def __init__(self, capacity: int):
-        super().__init__(capacity, {"position": 3, "velocity": 3, "force": 3, "age": 1, "smoke": 1}, {"smoke": 1.0})
+        super().__init__(capacity, {"position": 3, "velocity": 3, "force": 3, "age": 1, "smoke": 1, "volume": 1},
+                         {"smoke": 1.0, "volume": 1.0})
 
 
 class VisualParticles(ParticleSet):

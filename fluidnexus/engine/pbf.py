@@ -19,6 +19,7 @@ import taichi as ti
 import torch
 
 from . import tensors
+from .entrainment import entrain
 from .model import ModelConfig, SolverConfig
 from .neighbors import NeighborTable
 from .runtime import real
@@ -44,17 +45,21 @@ def predict(n: int, dt: float, p: ti.template(), u: ti.template(), force: ti.tem
 
 
 @ti.func
-def _lambda(i, it, w0, rho0, eps, rho, gsum, gsq, lam):
-    # lambda_i = -C_i / (sum_k |grad_k C_i|^2 + eps), C_i = rho_i / rho0 - 1 (two-sided; Macklin Eq. 11)
-    c = (rho[it, i] + w0) / rho0 - 1.0
-    lam[it, i] = -c / ((gsum[it, i].norm_sqr() + gsq[it, i]) / (rho0 * rho0) + eps)
+def _lambda(i, it, w0, rho0, eps, rho, gsum, gsq, lam, vol):
+    # lambda_i = -C_i / (sum_k |grad_k C_i|^2 + eps), C_i = v_i rho_i / rho0 - 1 (two-sided; Macklin Eq. 11), with
+    # v_i the particle's rest volume (1 = its own; entrainment grows it, engine/entrainment.py): it rests at
+    # rho0 / v_i. grad_k C_i = v_i grad_k(rho_i) / rho0, so the stored lam is v_i lambda_i and the position update
+    # below keeps its symmetric form. v_i = 1 gives the paper's constraint bit for bit.
+    v = vol[i]
+    c = v * (rho[it, i] + w0) / rho0 - 1.0
+    lam[it, i] = -v * c / (v * v * (gsum[it, i].norm_sqr() + gsq[it, i]) / (rho0 * rho0) + eps)
 
 
 @ti.kernel
 def compute_lambda(n: int, it: int, w0: float, rho0: float, eps: float, rho: ti.template(), gsum: ti.template(),
-                   gsq: ti.template(), lam: ti.template()):
+                   gsq: ti.template(), lam: ti.template(), vol: ti.template()):
     for i in range(n):
-        _lambda(i, it, w0, rho0, eps, rho, gsum, gsq, lam)
+        _lambda(i, it, w0, rho0, eps, rho, gsum, gsq, lam, vol)
 
 
 @ti.func
@@ -77,7 +82,8 @@ def apply_delta(n: int, it: int, averaging: ti.template(), count: ti.template(),
 def project_constraint(n: int, it: int, h: float, w_coef: float, g_coef: float, w0: float, rho0: float, eps: float,
                        scorr_k: float, scorr_n: ti.template(), w_dq: float, averaging: ti.template(),
                        x: ti.template(), nbr: ti.template(), count: ti.template(), rho: ti.template(),
-                       gsum: ti.template(), gsq: ti.template(), lam: ti.template(), dp: ti.template()):
+                       gsum: ti.template(), gsq: ti.template(), lam: ti.template(), dp: ti.template(),
+                       vol: ti.template()):
     """One density-constraint projection x^it -> x^{it+1}, as four loops in one launch (launches cost more than
     these loops at a few thousand particles). Its reverse pass is four kernels: ``constraint_adjoint``,
     ``compute_lambda.grad``, ``delta_adjoint`` and ``apply_delta.grad``."""
@@ -94,7 +100,7 @@ def project_constraint(n: int, it: int, h: float, w_coef: float, g_coef: float, 
         gsum[it, i] = acc_g
         gsq[it, i] = acc_q
     for i in range(n):
-        _lambda(i, it, w0, rho0, eps, rho, gsum, gsq, lam)
+        _lambda(i, it, w0, rho0, eps, rho, gsum, gsq, lam, vol)
     # dp_i = (1/rho0) sum_j (lambda_i + lambda_j + s_corr) grad W_ij, s_corr = -K (W/W(dq))^n (Macklin Eq. 12-14)
     for i in range(n):
         acc = ti.Vector([0.0, 0.0, 0.0])
@@ -255,6 +261,7 @@ class PBFSimulator:
         self.rho_pre = sca(cap)
         self.age = ti.field(f, shape=cap)
         self.smoke = ti.field(f, shape=cap)
+        self.volume = ti.field(f, shape=cap)
         self.x = vec(solver.iterations + 1, cap)
         self.rho, self.gsq, self.lam = sca(its, cap), sca(its, cap), sca(its, cap)
         self.gsum, self.dp = vec(its, cap), vec(its, cap)
@@ -301,9 +308,11 @@ class PBFSimulator:
             raise ValueError(f"theta has {t.shape[0]} entries, model expects {len(self.model.param_names())}")
         tensors.load(self.theta, t)
 
-    def load(self, p, u, age=None, smoke=None) -> None:
+    def load(self, p, u, age=None, smoke=None, volume=None) -> None:
         """Set the start-of-step state: positions p [N, 3] m, velocities u [N, 3] m/s, ages [N] s (default 0),
-        smoke weights [N] (default 1: every particle is smoke; 0 marks ambient air, which buoyancy skips)."""
+        smoke weights [N] (default 1: every particle is smoke; 0 marks ambient air, which buoyancy skips), rest
+        volumes [N] (default 1, a particle's own; the entrainment term grows them, engine/entrainment.py: a
+        particle of volume v rests at rho0 / v, and buoyancy acts on its smoke concentration smoke / v)."""
         p, u = tensors.as_tensor(p, 3), tensors.as_tensor(u, 3)
         if p.shape != u.shape:
             raise ValueError(f"p {tuple(p.shape)} and u {tuple(u.shape)} differ")
@@ -312,14 +321,16 @@ class PBFSimulator:
         self.n = p.shape[0]
         tensors.load(self.p, p)
         tensors.load(self.u, u)
-        for field, values, default in ((self.age, age, 0), (self.smoke, smoke, 1)):
-            if values is None:
-                field.fill(default)
-                continue
-            values = tensors.as_tensor(values).reshape(-1, 1)
+        columns = {}
+        for name, values, default in (("age", age, 0.0), ("smoke", smoke, 1.0), ("volume", volume, 1.0)):
+            values = torch.full((self.n,), default) if values is None else torch.as_tensor(values).reshape(-1)
             if values.shape[0] != self.n:
-                raise ValueError(f"{values.shape[0]} ages or smoke weights for {self.n} particles")
-            tensors.load(field, values)
+                raise ValueError(f"{values.shape[0]} {name} values for {self.n} particles")
+            columns[name] = values
+        if volume is not None:
+            columns["smoke"] = columns["smoke"] / columns["volume"]
+        for field, name in ((self.age, "age"), (self.smoke, "smoke"), (self.volume, "volume")):
+            tensors.load(field, tensors.as_tensor(columns[name].reshape(-1, 1)))
         self.token = None
 
     # ------------------------------------------------------------------ step
@@ -366,10 +377,11 @@ class PBFSimulator:
         rho0, avg = s.rest_density, bool(s.averaging)
         for it in range(s.iterations):
             project_constraint(n, it, h, wc, gc, w0, rho0, s.eps, s.scorr_k, s.scorr_n, w_dq, avg, self.x, nbr, cnt,
-                               self.rho, self.gsum, self.gsq, self.lam, self.dp)
+                               self.rho, self.gsum, self.gsq, self.lam, self.dp, self.volume)
             self._tape += [
                 (constraint_adjoint, (n, it, h, wc, gc, self.x, nbr, cnt, self.rho, self.gsum, self.gsq)),
-                (compute_lambda.grad, (n, it, w0, rho0, s.eps, self.rho, self.gsum, self.gsq, self.lam)),
+                (compute_lambda.grad, (n, it, w0, rho0, s.eps, self.rho, self.gsum, self.gsq, self.lam,
+                                       self.volume)),
                 (delta_adjoint, (n, it, h, wc, gc, rho0, s.scorr_k, s.scorr_n, w_dq, self.x, nbr, cnt, self.lam,
                                  self.dp)),
                 (apply_delta.grad, (n, it, avg, cnt, self.dp, self.x))]
@@ -409,12 +421,14 @@ class PBFSimulator:
 
 @ti.kernel
 def _gather_state(n: int, pos: ti.template(), vel: ti.template(), age: ti.template(), smoke: ti.template(),
-                  p: ti.template(), u: ti.template(), age_out: ti.template(), smoke_out: ti.template()):
+                  volume: ti.template(), p: ti.template(), u: ti.template(), age_out: ti.template(),
+                  smoke_out: ti.template(), volume_out: ti.template()):
     for i in range(n):
         p[i] = pos[i]
         u[i] = vel[i]
         age_out[i] = age[i]
-        smoke_out[i] = smoke[i]
+        smoke_out[i] = smoke[i] / volume[i]  # buoyancy acts on the concentration (PBFSimulator.load)
+        volume_out[i] = volume[i]
 
 
 @ti.kernel
@@ -428,13 +442,20 @@ def _scatter_state(n: int, last: int, dt: float, x: ti.template(), u_out: ti.tem
 
 
 def step_particles(sim: PBFSimulator, particles) -> None:
-    """Advance a :class:`~fluidnexus.engine.particles.PhysicalParticles` set by one step in place (no tape use)."""
+    """Advance a :class:`~fluidnexus.engine.particles.PhysicalParticles` set by one step in place (no tape use),
+    then let the model's entrainment (if any) grow the particles' volumes and slow them (engine/entrainment.py)."""
     n = particles.n
     if n > sim.capacity:
         raise ValueError(f"{n} particles exceed the simulator capacity {sim.capacity}")
     f = particles.fields
     sim.n = n
-    _gather_state(n, f["position"], f["velocity"], f["age"], f["smoke"], sim.p, sim.u, sim.age, sim.smoke)
+    _gather_state(n, f["position"], f["velocity"], f["age"], f["smoke"], f["volume"], sim.p, sim.u, sim.age,
+                  sim.smoke, sim.volume)
     sim.forward()
     _scatter_state(n, sim.solver.iterations, sim.solver.dt, sim.x, sim.u_out, sim.force, f["position"],
                    f["velocity"], f["force"], f["age"])
+    if sim.model.entrainment is not None and n:
+        u, volume = entrain(sim.model, particles.get("position"), particles.get("velocity"), particles.get("volume"),
+                            sim.solver)
+        particles.set("velocity", u)
+        particles.set("volume", volume)

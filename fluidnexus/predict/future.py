@@ -90,7 +90,7 @@ def future_context(run: Run, future: Future) -> tuple[RunContext, dict]:
     """(RunContext with the future's base model, run.json notes): the model file, then the backtest calibration.
     Needs the engine started."""
     ctx = RunContext.of(run)
-    loaded = load_model_file(future.model_file, ambient_air=True)
+    loaded = load_model_file(future.model_file, rollout=True)
     notes = {"model_file": None if future.model_file is None else str(Path(future.model_file).resolve()),
              "calibration": None}
     if loaded is not None:

@@ -16,6 +16,7 @@ import torch
 
 from .. import engine
 from ..engine import ModelConfig, SolverConfig, Wind
+from ..engine.entrainment import entrain
 from ..errors import InputError
 from ..recon.config import ReconConfig
 from ..recon.initial import emit, physical_source, visual_source
@@ -136,19 +137,26 @@ def inflow_look(smoke: Smoke, ctx: RunContext, frames: int = INFLOW_FRAMES) -> t
             float(smoke.opacity[recent].median()))
 
 
-def physics_step(smoke: Smoke, ws: Workspace, ctx: RunContext, look=None) -> Smoke:
+def physics_step(smoke: Smoke, volume: torch.Tensor, ws: Workspace, ctx: RunContext,
+                 look=None) -> tuple[Smoke, torch.Tensor]:
     """Frame ``smoke.frame + 1`` by physics alone (``smoke`` itself is left as it is), around the workspace's
-    obstacle; new Gaussians get ``look`` (default: the constant initial appearance)."""
+    obstacle; new Gaussians get ``look`` (default: the constant initial appearance). ``volume`` [N]: the physical
+    particles' rest volumes, which the model's entrainment grows (engine/entrainment.py; new particles start at
+    1); returned with the frame."""
     t = smoke.frame + 1
     smoke = replace(smoke)  # emit appends to its argument
     emit(smoke, ctx.source, ctx.config, t, look)
-    p, u = ws.simulate(smoke.p, smoke.u, smoke.age)
+    volume = torch.cat([volume, torch.ones(smoke.p.shape[0] - volume.shape[0], dtype=volume.dtype)])
+    p, u = ws.simulate(smoke.p, smoke.u, smoke.age, volume=volume)
+    if ws.model.entrainment is not None:
+        u_np, v_np = entrain(ws.model, p.numpy(), u.numpy(), volume.numpy(), ws.solver)
+        u, volume = torch.as_tensor(u_np), torch.as_tensor(v_np)
     kept = ~ws.isolated(p)  # the visual particles move with the particles the frame keeps (as in recon)
-    p, u, age = p[kept], u[kept], (smoke.age + ws.dt)[kept]
+    p, u, age, volume = p[kept], u[kept], (smoke.age + ws.dt)[kept], volume[kept]
     with torch.no_grad():
         x = engine.advect(smoke.x, p, u, ws.dt, ws.advect_query)
     x = ws.push_out(x)
-    return Smoke(t, p, u, age, x, smoke.color, smoke.scale, smoke.rotation, smoke.opacity)
+    return Smoke(t, p, u, age, x, smoke.color, smoke.scale, smoke.rotation, smoke.opacity), volume
 
 
 def rollout(start: Smoke, frames: int, ws: Workspace, ctx: RunContext, obstacle=None) -> Iterator[Smoke]:
@@ -161,8 +169,9 @@ def rollout(start: Smoke, frames: int, ws: Workspace, ctx: RunContext, obstacle=
     if ws.model.air is not None:
         yield from air_rollout(start, frames, ws, ctx, look)
         return
+    volume = torch.ones(start.p.shape[0], dtype=start.p.dtype)  # the reconstruction's particles: their own volume
     for _ in range(frames):
-        smoke = physics_step(smoke, ws, ctx, look)
+        smoke, volume = physics_step(smoke, volume, ws, ctx, look)
         yield smoke
 
 

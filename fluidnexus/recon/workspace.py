@@ -84,12 +84,14 @@ class Workspace:
     def dt(self) -> float:
         return self.solver.dt
 
-    def simulate(self, p: torch.Tensor, u: torch.Tensor, age: torch.Tensor, differentiable: bool = False):
-        """One PBF step (p, u) -> (p', u'); with ``differentiable`` the result carries the ``ti.ad`` graph."""
+    def simulate(self, p: torch.Tensor, u: torch.Tensor, age: torch.Tensor, differentiable: bool = False,
+                 volume: torch.Tensor | None = None):
+        """One PBF step (p, u) -> (p', u'); with ``differentiable`` the result carries the ``ti.ad`` graph.
+        ``volume``: the particles' rest volumes (default 1; entrainment, engine/entrainment.py)."""
         if differentiable:
-            return simulate_step(p, u, self.theta, self.sim, age)
+            return simulate_step(p, u, self.theta, self.sim, age, volume=volume)
         with torch.no_grad():
-            return simulate_step(p.detach(), u.detach(), self.theta, self.sim, age)
+            return simulate_step(p.detach(), u.detach(), self.theta, self.sim, age, volume=volume)
 
     def isolated(self, p: torch.Tensor) -> torch.Tensor:
         """[N] bool: physical particles with no other particle within h (the release deletes them)."""

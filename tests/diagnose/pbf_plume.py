@@ -16,14 +16,18 @@ from .eulerian_plume import Grid
 SPACING, INFLOW, JITTER = 0.015, 0.25, 0.2
 
 
-def simulate_pbf(frames: int, alpha: float = -0.04, k: float = 3.0, grid: Grid = Grid(), seed: int = 0) -> np.ndarray:
-    """Smoke density [frames, nx, ny, nz] (particle counts per grid cell) of the paper's gas, frame 0 empty."""
-    h = SPACING / 0.45
-    solver = engine.SolverConfig(h=h, rest_density=engine.rest_density_for_lattice(SPACING, h, 1.44), iterations=6,
+def simulate_pbf(frames: int, alpha: float = -0.04, k: float = 3.0, grid: Grid = Grid(), seed: int = 0,
+                 entrainment: float | None = None, spacing: float = SPACING) -> np.ndarray:
+    """Smoke density [frames, nx, ny, nz] (particle counts per grid cell) of the paper's gas, frame 0 empty;
+    ``entrainment``: the gas's entrainment coefficient (engine/entrainment.py), None for none; ``spacing``: the
+    lattice [m]."""
+    h = spacing / 0.45
+    solver = engine.SolverConfig(h=h, rest_density=engine.rest_density_for_lattice(spacing, h, 1.44), iterations=6,
                                  dt=1.0 / grid.fps)
-    src = engine.SourceDisk(center=grid.source, radius=grid.source_radius, spacing=SPACING, jitter=0.3)
+    src = engine.SourceDisk(center=grid.source, radius=grid.source_radius, spacing=spacing, jitter=0.3)
     parts = engine.PhysicalParticles(src.count * frames + 16)
-    model = engine.ModelConfig((engine.Buoyancy(alpha=alpha), engine.Drag(k=k)))
+    model = engine.ModelConfig((engine.Buoyancy(alpha=alpha), engine.Drag(k=k)),
+                               entrainment=None if entrainment is None else engine.Entrainment(entrainment))
     sim = engine.PBFSimulator(parts.capacity, solver, model)
     lo = np.asarray(grid.lo)
     hi = lo + np.asarray(grid.shape) * grid.dx
@@ -31,7 +35,7 @@ def simulate_pbf(frames: int, alpha: float = -0.04, k: float = 3.0, grid: Grid =
     rng, phase = np.random.default_rng(seed), 1.0
     out = [np.zeros(grid.shape)]
     for _ in range(1, frames):
-        phase += INFLOW / (SPACING * grid.fps)
+        phase += INFLOW / (spacing * grid.fps)
         if phase >= 1.0:
             phase -= 1.0
             pts = src.sample(rng)

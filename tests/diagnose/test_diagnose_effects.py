@@ -54,7 +54,10 @@ def diagnose_density(template, tmp_path, density: np.ndarray, train: str = TRAIN
                             cwd=ROOT, capture_output=True, text=True)
     assert result.returncode == 0, result.stdout + result.stderr
     report = json.loads((out / "report.json").read_text())
-    assert set(report) == {"finding", "candidates", "windows", "views", "emission", "structure"}
+    assert set(report) == {"finding", "candidates", "windows", "views", "emission", "structure", "explanations",
+                           "width_slope"}
+    assert report["explanations"][0]["structure"] == report["structure"]["name"]
+    assert report["explanations"][0]["effect"] == report["finding"]["effect"]
     assert report["structure"]["name"] in ("paper_gas", "ambient_air")
     model_file = json.loads((out / "model.json").read_text())
     assert model_file["model"]["structure"]["name"] == report["structure"]["name"]
@@ -66,7 +69,8 @@ def diagnose_density(template, tmp_path, density: np.ndarray, train: str = TRAIN
     assert [model_file["source"][k] for k in ("window", "window_from")] == list(report["emission"].values())
     assert len(report["views"]) == 5
     assert {c["effect"] for c in report["candidates"]} == {"wind", "buoyancy_decay", "vorticity", "viscosity",
-                                                           "dissipation", "swirl"}
+                                                           "dissipation", "swirl"} | (
+        {"entrainment"} if report["structure"]["name"] == "paper_gas" else set())
     assert (out / "model.json").exists() and (out / "report.md").exists() and (out / "image_error.png").exists()
     return report
 

@@ -24,19 +24,24 @@ def _state(n=40, seed=0):
     return p, u, age
 
 
-@pytest.mark.parametrize("averaging", [True, False])
-def test_step_matches_reference_forward_and_gradients(ti_engine, averaging):
+@pytest.mark.parametrize("averaging, volumes", [(True, False), (False, False), (True, True)])
+def test_step_matches_reference_forward_and_gradients(ti_engine, averaging, volumes):
+    """``volumes``: particles of rest volumes between 1 and 2 (entrainment, engine/entrainment.py)."""
     engine = ti_engine
     model = _all_terms(engine)
     solver = engine.SolverConfig(iterations=4, averaging=averaging, rest_density=1.2e6)
     p, u, age = _state()
+    vol = torch.tensor(np.random.default_rng(9).uniform(1.0, 2.0, len(p))) if volumes else None
     sim = engine.PBFSimulator(64, solver, model)
     P = torch.tensor(p, requires_grad=True)
     U = torch.tensor(u, requires_grad=True)
     th = torch.tensor(model.to_vector(), requires_grad=True)
-    p1, u1 = engine.simulate_step(P, U, th, sim, torch.tensor(age))
+    p1, u1 = engine.simulate_step(P, U, th, sim, torch.tensor(age), volume=vol)
     rP, rU, rth = (t.detach().clone().requires_grad_(True) for t in (P, U, th))
-    rp1, ru1 = ref.step(rP, rU, rth, model, solver, torch.tensor(age))
+    rp1, ru1 = ref.step(rP, rU, rth, model, solver, torch.tensor(age), volume=vol)
+    if volumes:  # a larger rest volume moves the particles apart: the step differs from the unit-volume one
+        unit, _ = ref.step(rP.detach(), rU.detach(), rth.detach(), model, solver, torch.tensor(age))
+        assert (unit - rp1).abs().max() > 1e-4
     assert (rp1 - torch.tensor(p)).abs().max() > 1e-3  # the step actually moves the particles
     torch.testing.assert_close(p1, rp1, rtol=0, atol=1e-12)
     torch.testing.assert_close(u1, ru1, rtol=0, atol=1e-10)
@@ -58,9 +63,11 @@ def test_step_gradients_match_finite_differences(ti_engine):
     rng = np.random.default_rng(6)
     wp, wu = rng.normal(size=p.shape), rng.normal(size=p.shape)
 
+    vol = np.random.default_rng(7).uniform(1.0, 1.5, len(p))  # rest volumes of entrained particles
+
     def loss(pp, uu, tt):
         sim.load_theta(tt)
-        sim.load(pp, uu, age)
+        sim.load(pp, uu, age, volume=vol)
         sim.forward()
         a, b = sim.result()
         return float((a.numpy() * wp).sum() + (b.numpy() * wu).sum())

@@ -116,10 +116,13 @@ def forces(p, u, age, model, theta, solver, pairs, smoke=None):
     return f
 
 
-def step(p, u, theta, model, solver, age=None, pairs_fn=pairs_dense, smoke=None):
-    """One PBF step (FluidNexus Eq. S1-S3); returns (p1, u1). Tables at p (terms) and p_hat (solver)."""
+def step(p, u, theta, model, solver, age=None, pairs_fn=pairs_dense, smoke=None, volume=None):
+    """One PBF step (FluidNexus Eq. S1-S3); returns (p1, u1). Tables at p (terms) and p_hat (solver). ``volume``
+    [N]: rest volumes v (default 1): particle i rests at rho0 / v_i and buoyancy acts on smoke / v_i."""
     h, dt, rho0 = solver.h, solver.dt, solver.rest_density
     age = torch.zeros(len(p), dtype=p.dtype) if age is None else age
+    v = torch.ones(len(p), dtype=p.dtype) if volume is None else volume
+    smoke = (torch.ones(len(p), dtype=p.dtype) if smoke is None else smoke) / v
     f = forces(p, u, age, model, theta, solver, pairs_fn(p, h), smoke)
     x = p + dt * (u + dt * f)
     i, j = pairs_fn(x, h)
@@ -134,7 +137,8 @@ def step(p, u, theta, model, solver, age=None, pairs_fn=pairs_dense, smoke=None)
         rho = density(x, (i, j), h)
         gsum = scatter(g, i, n)
         gsq = scatter((g * g).sum(-1), i, n)
-        lam = -(rho / rho0 - 1.0) / (((gsum**2).sum(-1) + gsq) / rho0**2 + solver.eps)
+        # C_i = v_i rho_i / rho0 - 1, grad C_i = v_i grad rho_i / rho0: the update uses v_i lambda_i
+        lam = -v * (v * rho / rho0 - 1.0) / (v * v * ((gsum**2).sum(-1) + gsq) / rho0**2 + solver.eps)
         s = -solver.scorr_k * (poly6(r2, h) / w_dq) ** solver.scorr_n
         dp = scatter(((lam[i] + lam[j] + s) / rho0)[:, None] * g, i, n)
         if solver.averaging:
