@@ -141,7 +141,7 @@ def physics_step(smoke: Smoke, ws: Workspace, ctx: RunContext, look=None) -> Smo
     obstacle; new Gaussians get ``look`` (default: the constant initial appearance)."""
     t = smoke.frame + 1
     smoke = replace(smoke)  # emit appends to its argument
-    emit(smoke, ctx.source, ctx.config, t, look)
+    emit(smoke, ctx.source, ctx.config, t, look, obstacle=ws.obstacle)
     p, u = ws.simulate(smoke.p, smoke.u, smoke.age)
     kept = ~ws.isolated(p)  # the visual particles move with the particles the frame keeps (as in recon)
     p, u, age = p[kept], u[kept], (smoke.age + ws.dt)[kept]
