@@ -57,6 +57,7 @@ class FinderConfig:
     sphere_rms: float = 0.08
     boundary_contact: float = 0.25  # share of one of the volume's faces a boundary covers
 
+
 BOUNDARY, SOLID = "boundary", "solid"
 FACES = ("-x", "+x", "-y", "+y", "-z", "+z")
 
