@@ -65,7 +65,8 @@ def frame_generator(seed: int, frame: int) -> torch.Generator:
 
 def initial_smoke(source: Source, visual: np.ndarray, cfg: ReconConfig, ws: Workspace, frame: int) -> Smoke:
     """Physical particles after N_stable stabilisation steps around ``source``, and visual particles at
-    ``visual`` [M, 3] with the constant initial appearance, at ``frame``; none inside ``ws``'s obstacle."""
+    ``visual`` [M, 3] (outside the obstacles: ``run.locate_smoke``) with the constant initial appearance, at
+    ``frame``; no physical particle inside ``ws``'s obstacle."""
     dtype, dt = ws.dtype, ws.dt
     cx, cy, cz = source.center
     below = SOURCE_DEPTH * cfg.length_scale
@@ -85,8 +86,7 @@ def initial_smoke(source: Source, visual: np.ndarray, cfg: ReconConfig, ws: Work
         smoke.p, smoke.u = ws.simulate(smoke.p, smoke.u, smoke.age)
         smoke.age = smoke.age + dt
         smoke.keep_physical(~ws.isolated(smoke.p))
-    smoke.add_visual(torch.as_tensor(outside(visual, ws.obstacle, "visual seeds")), cfg.color0, cfg.scale0,
-                     cfg.opacity0)
+    smoke.add_visual(torch.as_tensor(visual), cfg.color0, cfg.scale0, cfg.opacity0)
     return smoke
 
 

@@ -135,7 +135,7 @@ def test_no_gas_inside_a_body_after_seeding_and_steps(found, caplog):
     inside a body; the particles on the floor move along it."""
     from fluidnexus.engine import ModelConfig, SolverConfig
     from fluidnexus.recon.config import ReconConfig
-    from fluidnexus.recon.initial import emit, initial_smoke
+    from fluidnexus.recon.initial import emit, initial_smoke, outside
     from fluidnexus.recon.workspace import Workspace
     from fluidnexus.scene import Source
     from fluidnexus.scenery.obstacles import join
@@ -149,7 +149,8 @@ def test_no_gas_inside_a_body_after_seeding_and_steps(found, caplog):
     ws = Workspace(20000, 20000, SolverConfig(dt=1 / 30), ModelConfig.scalarflow())
     ws.set_obstacle(body)
     with caplog.at_level(logging.INFO, logger="fluidnexus"):
-        smoke = initial_smoke(source, np.array([[0.3, 0.2, 0.25], [0.3, 0.05, 0.25]]), cfg, ws, 0)
+        seeds = outside(np.array([[0.3, 0.2, 0.25], [0.3, 0.05, 0.25]]), body, "visual seeds")  # as recon seeds
+        smoke = initial_smoke(source, seeds, cfg, ws, 0)
         for t in range(1, 10):
             emit(smoke, source, cfg, t, obstacle=ws.obstacle)
             smoke.p, smoke.u = ws.simulate(smoke.p, smoke.u, smoke.age)
