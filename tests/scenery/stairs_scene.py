@@ -84,12 +84,11 @@ def _scenery(origin: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return color, far
 
 
-def render(cam: Camera, t: float | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(image [H, W, 3], smoke alpha [H, W]) of the scene seen by ``cam``: with the smoke at time ``t`` (frames)
-    in front of what it covers, or without smoke (``t`` None, alpha 0)."""
+def render(cam: Camera, t: float | None = None) -> np.ndarray:
+    """[H, W, 3] image of the scene seen by ``cam``: with the smoke at time ``t`` (frames) in front of what it
+    covers, or without smoke (``t`` None)."""
     origin, d = _rays(cam)
     color, far = _scenery(origin, d)
-    alpha = np.zeros(len(d))
     if t is not None:  # emission-absorption march through the blob, stopped at the scenery
         depth = np.linalg.norm(SMOKE_CENTER - origin)
         steps = np.linspace(depth - 4 * SMOKE_SIGMA, depth + 4 * SMOKE_SIGMA, 48)
@@ -100,5 +99,4 @@ def render(cam: Camera, t: float | None = None) -> tuple[np.ndarray, np.ndarray]
             optical += np.where(s < far, sigma * ds, 0.0)
         alpha = 1.0 - np.exp(-optical)
         color = (1.0 - alpha)[:, None] * color + alpha[:, None] * 0.95
-    shape = (cam.height, cam.width)
-    return color.reshape(*shape, 3).astype(np.float32), alpha.reshape(shape).astype(np.float32)
+    return color.reshape(cam.height, cam.width, 3).astype(np.float32)

@@ -22,10 +22,10 @@ def stairs(ti_engine):
     from fluidnexus.scenery.static_layer import StaticConfig, fit_static
 
     cameras = [camera(a) for a in AZIMUTHS]
-    plates = [render(c)[0] for c in cameras]
+    plates = [render(c) for c in cameras]
     confidences = [np.ones(p.shape[:2], np.float32) for p in plates]
     layer = fit_static(cameras, plates, confidences, LO, HI, StaticConfig(iterations=ITERATIONS, seed=0))
-    smoke = [[smoke_mask(render(c, t)[0], 0.05, p) for c, p in zip(cameras, plates)] for t in FRAMES]
+    smoke = [[smoke_mask(render(c, t), 0.05, p) for c, p in zip(cameras, plates)] for t in FRAMES]
     return cameras, layer, smoke
 
 
