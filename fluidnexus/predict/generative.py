@@ -63,7 +63,7 @@ def refit(start: Smoke, videos: np.ndarray, cameras: list[Camera], ws: Workspace
             t = prev.frame + 1
             views = Views(tuple(cameras), torch.as_tensor(videos[:, k], dtype=ws.dtype), args)
             prev = replace(prev)  # emit appends to its argument; the caller's start stays as it is
-            emit(prev, ctx.source, cfg, t, look)
+            emit(prev, ctx.source, cfg, t, look, obstacle=ws.obstacle)
             dyn = fit_dynamics(prev, ws, views, cfg, frame_generator(cfg.seed, t), lambda p: ~ws.isolated(p), bar)
             smoke = Smoke(t, dyn.p, dyn.u, dyn.age, dyn.x, prev.color, prev.scale, prev.rotation, prev.opacity)
             fit_appearance(smoke, views, cfg, frame_generator(cfg.seed, t), bar)

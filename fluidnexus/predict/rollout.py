@@ -145,7 +145,7 @@ def physics_step(smoke: Smoke, volume: torch.Tensor, ws: Workspace, ctx: RunCont
     1); returned with the frame."""
     t = smoke.frame + 1
     smoke = replace(smoke)  # emit appends to its argument
-    emit(smoke, ctx.source, ctx.config, t, look)
+    emit(smoke, ctx.source, ctx.config, t, look, obstacle=ws.obstacle)
     volume = torch.cat([volume, torch.ones(smoke.p.shape[0] - volume.shape[0], dtype=volume.dtype)])
     p, u = ws.simulate(smoke.p, smoke.u, smoke.age, volume=volume)
     if ws.model.entrainment is not None:

@@ -37,7 +37,7 @@ from ..scenery.world import declared_scenery, fit_scenery
 from ..state import frame_path, load_frame, save_frame
 from .config import ReconConfig, differing_keys
 from .fit import Views, fit_appearance, fit_dynamics, fit_look, fit_positions
-from .initial import emit, frame_generator, initial_smoke, initial_visual
+from .initial import emit, frame_generator, initial_smoke, initial_visual, outside
 from .memory import recon_estimate
 from .observations import load_observations, resolve_frames
 from .setup import RunSetup, capacities, scene_source
@@ -55,10 +55,7 @@ def locate_smoke(scene: Scene, obs, cfg: ReconConfig, obstacle=None) -> tuple[Fo
     from the first frame's visual hull, none inside an obstacle."""
     found = find_source(scene, obs, cfg.visual_spacing, SOURCE_SLAB * cfg.length_scale,
                         scene_source(scene, cfg.length_scale), obstacle)
-    seeds = initial_visual(found.source, found.hull_points, cfg)
-    if obstacle is not None and len(seeds):
-        seeds = seeds[obstacle.distance(seeds) > 0]
-    return found, seeds
+    return found, outside(initial_visual(found.source, found.hull_points, cfg), obstacle, "visual seeds")
 
 
 def _prepare_folder(out: Path, scene: Scene, setup: RunSetup, frames: tuple[int, int], resume: bool) -> int:
@@ -115,7 +112,8 @@ def reconstruct(scene: Scene, out: str | Path, setup: RunSetup, resume: bool = F
     if not resume:
         _refuse_occupied(out)
     cameras = {v.name: v.camera.scaled(cfg.resolution) for v in scene.usable_views()}
-    scenery = fit_scenery(scene, declared, cameras, cfg.channels, cfg.static_iters, cfg.seed, out / STATIC_FILE)
+    scenery = fit_scenery(scene, declared, cameras, cfg.channels, cfg.static_iters, cfg.seed, frames,
+                          out / STATIC_FILE)
     obstacle = scenery.obstacle
     if obstacle is not None and cfg.lambda_next:
         log.info("the scene has obstacles: the look-ahead term is off (a step with an obstacle has no gradient)")
@@ -243,7 +241,7 @@ def _one_frame(prev: Smoke, t, source, obs, ws, cfg, bar, watch, out, volume) ->
     if cfg.physical_support == "on":
         log.info("frame %d: %d physical particles seeded under the visual particles without any", t,
                  support(prev, ws, cfg.physical_spacing))
-    emit(prev, source, cfg, t)
+    emit(prev, source, cfg, t, obstacle=ws.obstacle)
     try:
         with watch.measure("dynamics"):
             dyn = fit_dynamics(prev, ws, views, cfg, frame_generator(cfg.seed, t),

@@ -6,18 +6,31 @@
    colour by more than ``plain`` give a surface point at the expected depth (depth / alpha).
 2. **Carving** (space carving by depth): a voxel of a grid over the volume is free when some view sees past it:
    nothing inside the volume is opaque at its pixel (or it shows the layer's background colour), or the surface
-   there lies more than ``tolerance`` voxels behind the voxel. What no view sees past, and at least one view sees, is occupied.
+   there lies more than ``tolerance`` voxels behind the voxel. What no view sees past, and at least one view sees
+   through a pixel its plate is sure of (confidence at least ``plates.CONFIDENT``), is occupied: where every view's
+   plate is unsure the footage shows smoke there most of the time (a jet at its pipe), the layer's Gaussians are
+   unconstrained, and their surface is not a body's. **Smoke is not a body**: a voxel that every view sees as smoke
+   in one of the footage's frames (its visual hull against the plates) is free too, wherever the layer's surface
+   lies. The depth tolerance leaves a band in front of every surface occupied, and faint Gaussians floating in
+   front of a surface pull its expected depth further forward; smoke hugging the floor or the stairs lies there
+   (on PINF's Game most of the smoke's hull inside the carved stairs lay within two voxels of its surface). The
+   hull also holds the space right behind the smoke, so a body under dense smoke gets a dent as deep as the
+   views' rays through the smoke reach into it.
 3. **Bodies**: connected occupied parts holding at least ``min_points`` surface points are obstacles (the
    backdrop lies outside the volume and carves nothing). Each gets a signed-distance grid (negative inside, the
    format of ``engine.obstacle.GridObstacle``) and a least-squares sphere fitted to its surface points; a body
    whose surface points lie within ``sphere_rms`` of the sphere (relative to its radius) is sphere-like, and its
    engine body is that ball (the carved part also holds what no camera sees behind the ball, e.g. under it when
-   every camera looks down).
+   every camera looks down). The volume's faces are not a body's surface: the grid continues the body beyond the
+   faces it touches, so a point inside it is moved to the surface that faces the flow, never out of the volume.
+4. **Kinds**: a body that covers at least ``boundary_contact`` of one of the volume's faces (a floor, stairs, a
+   wall) is a **boundary**: the scene itself, which the gas slides along (its carved grid, whatever its shape); any
+   other body is a **solid** in the flow, which the gas flows around (``FoundObstacle.gas``).
 
-4. **Balls from silhouettes**: a body whose silhouettes (the matte of the layer's Gaussians inside the volume in
+5. **Balls from silhouettes**: a body whose silhouettes (the matte of the layer's Gaussians inside the volume in
    each training view) outline one ball (the rays through the outlines graze it, ``silhouettes``) becomes that
    ball, which the layer's surface depths only approximate; parts of it found separately are dropped
-   (:func:`refine_balls`).
+   (:func:`refine_balls`). A boundary is never refitted.
 
 Declared obstacles (scene.json ``obstacles``) win: a found body that overlaps a declared one is dropped
 (:func:`merge_with_declared`).
@@ -29,6 +42,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..scene_scale import box_size
+from .plates import CONFIDENT
 from .silhouettes import fit_ball_to_rays, silhouette_rays
 from .static_layer import StaticLayer, inside_volume, render_static
 
@@ -41,6 +55,11 @@ class FinderConfig:
     tolerance: float = 1.5  # voxels
     min_points: int = 30
     sphere_rms: float = 0.08
+    boundary_contact: float = 0.25  # share of one of the volume's faces a boundary covers
+
+
+BOUNDARY, SOLID = "boundary", "solid"
+FACES = ("-x", "+x", "-y", "+y", "-z", "+z")
 
 
 @dataclass(frozen=True, eq=False)
@@ -53,6 +72,8 @@ class FoundObstacle:
         points: [K, 3] the body's surface points seen by the views (metres).
         center, radius: the least-squares sphere through ``points``; ``rms`` its residual (metres).
         volume: the occupied volume, m^3.
+        contact: the share of each of the volume's faces (``FACES``) the body covers, [6].
+        kind: ``BOUNDARY`` (the scene: a floor, stairs, a wall) or ``SOLID`` (a body in the flow).
     """
 
     phi: np.ndarray
@@ -63,9 +84,11 @@ class FoundObstacle:
     radius: float
     rms: float
     volume: float
+    contact: tuple[float, ...]
+    kind: str
 
     def sphere_like(self, tolerance: float = FinderConfig.sphere_rms) -> bool:
-        return self.rms <= tolerance * self.radius
+        return self.kind == SOLID and self.rms <= tolerance * self.radius
 
     def engine_body(self, tolerance: float = FinderConfig.sphere_rms):
         """The engine's one-way coupling body: the fitted ball when sphere-like, else the carved grid."""
@@ -75,10 +98,21 @@ class FoundObstacle:
             return SphereObstacle(self.center, self.radius)
         return GridObstacle(self.phi, self.origin, self.spacing)
 
+    def gas(self) -> str:
+        """What the gas does with the body, in words."""
+        if self.kind == BOUNDARY:
+            faces = ", ".join(f for f, c in zip(FACES, self.contact) if c > 0)
+            return (f"slides along it: a boundary of the scene (touches the volume's faces {faces}); a particle "
+                    "entering it is moved back to the surface it faces, its tangential velocity kept, and no gas "
+                    "is placed inside it")
+        shape = f"the ball of radius {self.radius:.4g} m" if self.sphere_like() else "the carved body"
+        return f"flows around {shape}: a solid in the flow; no gas is placed inside it"
+
     def to_dict(self) -> dict:
-        return {"center": [round(float(v), 6) for v in self.center], "radius": round(self.radius, 6),
-                "rms": round(self.rms, 6), "volume": round(self.volume, 9), "points": int(len(self.points)),
-                "sphere_like": self.sphere_like()}
+        return {"kind": self.kind, "center": [round(float(v), 6) for v in self.center],
+                "radius": round(self.radius, 6), "rms": round(self.rms, 6), "volume": round(self.volume, 9),
+                "points": int(len(self.points)), "sphere_like": self.sphere_like(),
+                "faces": {f: round(c, 4) for f, c in zip(FACES, self.contact) if c > 0}, "gas": self.gas()}
 
 
 def fit_sphere(points: np.ndarray, rounds: int = 5) -> tuple[np.ndarray, float, float]:
@@ -123,9 +157,15 @@ def surface_points(layer: StaticLayer, cameras, opaque: float = FinderConfig.opa
     return out
 
 
-def find_obstacles(layer: StaticLayer, cameras, lo, hi, cfg: FinderConfig = FinderConfig()) -> list[FoundObstacle]:
+def find_obstacles(layer: StaticLayer, cameras, lo, hi, cfg: FinderConfig = FinderConfig(),
+                   confidences=None, smoke=()) -> list[FoundObstacle]:
     """The obstacles inside the volume ``lo``..``hi`` (metres) that the static layer shows to ``cameras``,
-    largest first (module docstring)."""
+    largest first (module docstring).
+
+    Args:
+        confidences: per camera, its plate's confidence [H, W] at the camera's size (None: every pixel sure).
+        smoke: per frame of footage, per camera, [H, W] bool: the pixels that show smoke (none: no footage).
+    """
     from scipy import ndimage
 
     lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
@@ -135,15 +175,25 @@ def find_obstacles(layer: StaticLayer, cameras, lo, hi, cfg: FinderConfig = Find
     centers = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
     carved = np.zeros(len(centers), bool)
     seen = np.zeros(len(centers), bool)
+    hulls = np.ones((len(smoke), len(centers)), bool)  # every view sees smoke there, per frame
     views = surface_points(layer, cameras, cfg.opaque, cfg.plain)
-    for camera, (_, z, _) in zip(cameras, views):
+    confidences = [None] * len(cameras) if confidences is None else confidences
+    for v, (camera, (_, z, _), confidence) in enumerate(zip(cameras, views, confidences)):
         uv, depth = camera.project(centers)
         col, row = np.floor(uv[:, 0]).astype(int), np.floor(uv[:, 1]).astype(int)
         inside = (depth > 0) & (col >= 0) & (col < camera.width) & (row >= 0) & (row < camera.height)
         surface = np.full(len(centers), -np.inf)
         surface[inside] = z[row[inside], col[inside]]
-        seen |= inside
+        sure = inside.copy()
+        if confidence is not None:
+            sure[inside] = np.asarray(confidence)[row[inside], col[inside]] >= CONFIDENT
+        seen |= sure
         carved |= inside & (depth < surface - cfg.tolerance * spacing)
+        for k, masks in enumerate(smoke):
+            shows = np.zeros(len(centers), bool)
+            shows[inside] = masks[v][row[inside], col[inside]]
+            hulls[k] &= shows
+    carved |= hulls.any(axis=0)
     occupied = (seen & ~carved).reshape(tuple(res))
     points = np.concatenate([v[2] for v in views])
     points = points[np.all((points >= lo) & (points <= hi), axis=1)]
@@ -161,10 +211,22 @@ def find_obstacles(layer: StaticLayer, cameras, lo, hi, cfg: FinderConfig = Find
             continue
         body = labels == label
         center, radius, rms = fit_sphere(mine)
-        found.append(FoundObstacle(_signed_distance(body, spacing), tuple(float(v) for v in lo - 0.5 * spacing),
+        contact = face_contact(body)
+        kind = BOUNDARY if max(contact) >= cfg.boundary_contact else SOLID
+        found.append(FoundObstacle(signed_distance(body, spacing), tuple(float(v) for v in lo - 0.5 * spacing),
                                    float(spacing), mine, tuple(float(v) for v in center), radius, rms,
-                                   float(body.sum()) * spacing ** 3))
+                                   float(body.sum()) * spacing ** 3, contact, kind))
     return sorted(found, key=lambda f: -f.volume)
+
+
+def face_contact(body: np.ndarray) -> tuple[float, ...]:
+    """The share of each face of the grid (``FACES``' order) that the voxel set ``body`` [nx, ny, nz] covers: the
+    occupied share of the grid's outermost layer of voxels on that side."""
+    out = []
+    for axis in range(3):
+        for end in (0, -1):
+            out.append(float(np.take(body, end, axis=axis).mean()))
+    return tuple(out)
 
 
 def refine_balls(found: list[FoundObstacle], layer: StaticLayer, cameras,
@@ -179,6 +241,9 @@ def refine_balls(found: list[FoundObstacle], layer: StaticLayer, cameras,
     mattes = [render_static(inner, cam)[1].numpy() >= 0.5 for cam in cameras]
     out = []
     for body in found:
+        if body.kind == BOUNDARY:
+            out.append(body)
+            continue
         if any(b.sphere_like(cfg.sphere_rms) and np.linalg.norm(np.subtract(body.center, b.center)) < b.radius
                for b in out):
             continue
@@ -194,12 +259,14 @@ def refine_balls(found: list[FoundObstacle], layer: StaticLayer, cameras,
     return out
 
 
-def _signed_distance(body: np.ndarray, spacing: float) -> np.ndarray:
+def signed_distance(body: np.ndarray, spacing: float) -> np.ndarray:
     """Signed distance (metres, negative inside) of a voxel set, sampled at the voxel centres of its grid padded by
-    one free voxel on every side (the first padded centre lies at ``lo - 0.5 spacing``)."""
+    one voxel on every side (the first padded centre lies at ``lo - 0.5 spacing``). The padding continues the body
+    beyond the grid's faces (the volume's faces are not its surface): the distance inside is to the surface that
+    faces the free voxels."""
     from scipy import ndimage
 
-    padded = np.pad(body, 1)
+    padded = np.pad(body, 1, mode="edge")
     outside = ndimage.distance_transform_edt(~padded)
     inside = ndimage.distance_transform_edt(padded)
     return np.where(padded, -(inside - 0.5), outside - 0.5) * spacing

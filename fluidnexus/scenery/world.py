@@ -4,8 +4,9 @@ gas flows around, declared and found.
 A scene without plates has no static layer; its obstacles are the declared ones (scene.json ``obstacles``). With
 plates, recon fits the layer at the run's resolution and colour channels (``static_layer.fit_static``, seeded by the
 run's seed) and saves it as ``RUN/static.npz`` (a resumed run reads it back instead of fitting again), finds the
-opaque bodies inside the volume (``found_obstacles.find_obstacles``) and keeps those that do not touch a declared
-body (``merge_with_declared``: where the user declared a body, theirs wins). Predict, interact and diagnose rebuild
+opaque bodies inside the volume (``found_obstacles.find_obstacles``: what the plates are sure of), each a boundary
+of the scene or a solid in the flow, and keeps those that do not touch a declared body (``merge_with_declared``:
+where the user declared a body, theirs wins). Predict, interact and diagnose rebuild
 a run's bodies with :func:`run_scenery` (the finder is deterministic)."""
 from __future__ import annotations
 
@@ -19,10 +20,15 @@ from ..images import resize_image, to_channels
 from ..scene import Scene
 from .found_obstacles import find_obstacles, merge_with_declared, refine_balls
 from .obstacles import engine_obstacle, join
+from ..video import read_video
+from .backdrop import smoke_mask
 from .plate_store import read_plate
 from .static_layer import STATIC_FILE, StaticConfig, fit_static, load_static
 
 log = logging.getLogger("fluidnexus")
+
+SMOKE_FRAMES = 8  # frames of footage whose smoke the obstacle finder keeps free
+SMOKE_THRESHOLD = 0.05  # a pixel shows smoke where it differs from the plate by more (recon's visual hull's)
 
 
 @dataclass(frozen=True, eq=False)
@@ -41,48 +47,63 @@ def declared_scenery(scene: Scene) -> Scenery:
     return Scenery(None, body, {"obstacles": [o.to_dict() for o in scene.obstacles]})
 
 
-def plates_at(scene: Scene, cameras: dict, channels: int) -> tuple[list, list, list]:
-    """(cameras, plates [H, W, C], confidences [H, W]) of the views that have a plate, at ``cameras``' sizes."""
-    cams, plates, confidences = [], [], []
+def plates_at(scene: Scene, cameras: dict, channels: int) -> tuple[dict, list, list]:
+    """(name -> camera, plates [H, W, C], confidences [H, W]) of the views that have a plate, at ``cameras``'
+    sizes."""
+    cams, plates, confidences = {}, [], []
     for name, camera in cameras.items():
         found = read_plate(scene, name)
         if found is None:
             continue
         plate, confidence = found
-        cams.append(camera)
+        cams[name] = camera
         plates.append(to_channels(resize_image(plate, camera.width, camera.height), channels))
         confidences.append(resize_image(confidence[..., None], camera.width, camera.height)[..., 0])
     return cams, plates, confidences
 
 
+def smoke_masks(scene: Scene, cameras: dict, plates: list, frames: tuple[int, int]) -> list[list[np.ndarray]]:
+    """Per frame of ``SMOKE_FRAMES`` spread evenly over ``frames``, per view of ``cameras`` (name -> camera, the
+    views with a plate, in ``plates``' order): [H, W] bool, the pixels that show smoke over the view's plate."""
+    start, stop = frames
+    stride = max(1, (stop - start) // SMOKE_FRAMES)
+    views = {v.name: v for v in scene.usable_views()}
+    videos = [read_video(scene.video_path(views[name]), frames=slice(start, stop), stride=stride,
+                         size=(camera.width, camera.height), channels=plate.shape[-1])
+              for (name, camera), plate in zip(cameras.items(), plates)]
+    return [[smoke_mask(video[k], SMOKE_THRESHOLD, plate) for video, plate in zip(videos, plates)]
+            for k in range(len(videos[0]))]
+
+
 def fit_scenery(scene: Scene, declared: Scenery, cameras: dict, channels: int, iterations: int, seed: int,
-                saved: Path | None = None) -> Scenery:
+                frames: tuple[int, int], saved: Path | None = None) -> Scenery:
     """With plates: the static layer (read from ``saved``, a run's static.npz, when it exists; else fitted) and
-    the obstacles found in it; without: ``declared`` unchanged. Writes nothing.
+    the obstacles found in it and in the footage of ``frames`` (``smoke_masks``); without: ``declared``
+    unchanged. Writes nothing.
 
     Args:
         cameras: view name -> camera at the run's resolution (the views with plates are used).
     """
     if not scene.backgrounds or scene.volume is None:
         return declared
+    named, plates, confidences = plates_at(scene, cameras, channels)
+    smoke, cams = smoke_masks(scene, named, plates, frames), list(named.values())
     if saved is not None and saved.is_file():
-        cams = [camera for name, camera in cameras.items() if name in scene.backgrounds]
         layer = load_static(saved)
         log.info("static layer: %d Gaussians read from %s", len(layer), saved)
     else:
-        cams, plates, confidences = plates_at(scene, cameras, channels)
         layer = fit_static(cams, plates, confidences, scene.volume.min, scene.volume.max,
                            StaticConfig(iterations=iterations, seed=seed))
         log.info("static layer: %d Gaussians fitted to %d plates (loss %.4g)", len(layer), len(cams),
                  layer.info["loss"])
-    found = refine_balls(find_obstacles(layer, cams, scene.volume.min, scene.volume.max), layer, cams)
-    found = merge_with_declared(found, declared.obstacle)
+    found = find_obstacles(layer, cams, scene.volume.min, scene.volume.max, confidences=confidences, smoke=smoke)
+    found = merge_with_declared(refine_balls(found, layer, cams), declared.obstacle)
     for body in found:
-        log.info("obstacle found in the footage: centre %s, radius %.4g m%s", np.round(body.center, 4),
-                 body.radius, " (sphere-like: a ball)" if body.sphere_like() else " (a carved grid)")
+        log.info("obstacle found in the footage, a %s: centre %s, radius %.4g m, volume %.4g m^3; the gas %s",
+                 body.kind, np.round(body.center, 4), body.radius, body.volume, body.gas())
     obstacle = join(declared.obstacle, *(b.engine_body() for b in found))
     record = {**declared.record, "static_layer": {"file": STATIC_FILE, "gaussians": len(layer),
-                                                  "plates": sorted(n for n in cameras if n in scene.backgrounds)},
+                                                  "plates": sorted(named)},
               "found_obstacles": [b.to_dict() for b in found]}
     return replace(declared, layer=layer, obstacle=obstacle, record=record)
 
@@ -97,7 +118,7 @@ def run_scenery(run) -> Scenery:
     if not saved.is_file():
         return declared
     cameras = {v.name: v.camera.scaled(run.resolution) for v in scene.usable_views()}
-    return fit_scenery(scene, declared, cameras, run.channels, 0, 0, saved)
+    return fit_scenery(scene, declared, cameras, run.channels, 0, 0, tuple(run.info["frames"]), saved)
 
 
 # Diagnose simulates the same bodies in worker processes (``diagnose --jobs``): it passes where they come from, not

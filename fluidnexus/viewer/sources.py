@@ -134,7 +134,7 @@ class RunContent:
         parent = self.parent()
         found = self.run.info.get("found_obstacles") or (parent.info.get("found_obstacles") if parent else None) or []
         for item in found:
-            shape = "ball" if item.get("sphere_like") else "body (its fitted ball shown)"
+            shape = "ball" if item.get("sphere_like") else f"{item.get('kind', 'body')} (its fitted ball shown)"
             out.append(Body("found", f"found {shape}", tuple(item["center"]), float(item["radius"])))
         added = (self.run.info.get("interaction") or {}).get("obstacle")
         if added and added.get("kind") == "ball":

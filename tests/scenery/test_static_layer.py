@@ -96,7 +96,7 @@ def test_balls_are_refitted_to_their_silhouettes(ti_engine):
                        StaticConfig(iterations=200, seed=3))
     off = BALL_CENTER + 0.15 * BALL_RADIUS * np.array([0.6, -0.64, 0.48])
     guess = FoundObstacle(np.zeros((2, 2, 2)), (0.0, 0.0, 0.0), 0.1, np.zeros((40, 3)), tuple(off),
-                          1.15 * BALL_RADIUS, 0.0, 1.0)
+                          1.15 * BALL_RADIUS, 0.0, 1.0, (0.0,) * 6, "solid")
     ball = refine_balls([guess], layer, cameras)[0]
     assert ball.sphere_like()
     assert np.linalg.norm(np.asarray(ball.center) - BALL_CENTER) <= 0.05 * BALL_RADIUS, ball.center
