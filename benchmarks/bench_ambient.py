@@ -116,8 +116,8 @@ def main() -> None:
     wall = [min(r[0] for r in runs) for runs in (gas, air)]
     cpu = [min(r[1] for r in runs) for runs in (gas, air)]
     print(f"machine: {platform.machine()} {platform.processor() or ''} arch {args.arch}, load average "
-          f"{os.getloadavg()[0]:.1f}; {args.steps} steps, lattice ratios of {args.spacing} m (air spacing {rest:.4f} m, "
-          f"H {solver.h:.4f} m), best of {args.repeats}")
+          f"{os.getloadavg()[0]:.1f}; {args.steps} steps, lattice ratios of {args.spacing} m (air spacing "
+          f"{rest:.4f} m, H {solver.h:.4f} m), best of {args.repeats}")
     print("| structure | wall ms per step | CPU ms per step | smoke particles at the end | all particles at the end |")
     print("|---|---|---|---|---|")
     for name, w, c, r in (("paper_gas", wall[0], cpu[0], gas[0]), ("ambient_air", wall[1], cpu[1], air[0])):

@@ -58,7 +58,8 @@ def _score(rendered: list[np.ndarray], truth: np.ndarray, lpips_weights) -> Scor
     if lpips_weights is not None:
         from .lpips import lpips
 
-        lp = _mean(float(lpips(lpips_weights, torch.from_numpy(r), torch.from_numpy(g))) for r, g in zip(rendered, truth))
+        lp = _mean(float(lpips(lpips_weights, torch.from_numpy(r), torch.from_numpy(g)))
+                   for r, g in zip(rendered, truth))
     return Scores(float(np.mean(p)), float(np.mean(s)), lp)
 
 

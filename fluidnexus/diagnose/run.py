@@ -155,19 +155,22 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
         obs_o = observables(observed.images, cams, observed.fps)
         drift = {st: _drift_velocity(obs_o.centroid[tr] - observables(bases[st].images, cams, observed.fps)
                                      .centroid[tr], observed.fps) for st in tried}
-        results = pool.map(fit_candidate, [(bases[st], name, maxfev, drift[st]) for st, name in jobs_list])
-        ablations = pool.map(ablate, [(fit,) for fit in results])
+        results = dict(zip(jobs_list, pool.map(fit_candidate, [(bases[st], name, maxfev, drift[st])
+                                                                for st, name in jobs_list])))
+        # only a candidate with a clear gain can pass: only its term is switched off to see whether it carries it
+        clear = [key for key, fit in results.items() if judge(bases[key[0]], fit, tr, va).clear_gain]
+        ablations = dict(zip(clear, pool.map(ablate, [(results[key],) for key in clear])))
     fits = {st: {} for st in tried}
     judged = {st: {} for st in tried}
-    for (st, name), fit, ablated in zip(jobs_list, results, ablations):
+    for (st, name), fit in results.items():
         fits[st][name] = fit
-        judged[st][name] = judge(bases[st], fit, tr, va, ablated)
+        judged[st][name] = judge(bases[st], fit, tr, va, ablations.get((st, name)))
     for st, named in judged.items():
         for name, j in named.items():
             log.info("candidate %s on %s: %s, training error %.4f -> %.4f, validation error %.4f -> %.4f (gain "
-                     "%.1f %%, p %.2g; without its term %.4f)", name, st, fits[st][name].params.extensions[name],
+                     "%.1f %%, p %.2g; without its term %s)", name, st, fits[st][name].params.extensions[name],
                      j.train_before, j.train_after, j.before, j.after, 100 * j.relative_gain, j.p_value,
-                     j.ablated.before)
+                     "not needed" if j.ablated is None else f"{j.ablated.before:.4f}")
     explanations = explain(bases, structure_judged, fits, judged, va)
     structure, finding = explanations[0][:2]
     base = bases[structure]

@@ -248,8 +248,8 @@ class Judgement:
     p-value, and the mean training errors before/after (the frames both models were fitted to).
 
     ``ablated``: the candidate judged against itself with its term switched off (``ablate``), None for a
-    structure; ``nested``: whether its search started at the model it extends (every candidate but entrainment's,
-    ``fit_candidate``)."""
+    structure and for a candidate without a clear gain (it cannot pass); ``nested``: whether its search started at
+    the model it extends (every candidate but entrainment's, ``fit_candidate``)."""
 
     before: float
     after: float
@@ -279,8 +279,8 @@ class Judgement:
     @property
     def term_carries_gain(self) -> bool:
         """The gain is the term's: with the term switched off and the rest as fitted, the validation error is
-        clearly higher (the same rule)."""
-        return self.ablated is None or self.ablated.clear_gain
+        clearly higher (the same rule). Not known (False) before the ablation is judged."""
+        return self.ablated is not None and self.ablated.clear_gain
 
     @property
     def passes(self) -> bool:

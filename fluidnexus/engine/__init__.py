@@ -15,8 +15,9 @@ from .advect import advect
 from .particles import PhysicalParticles, VisualParticles, prune
 from .emitter import SourceDisk, cylinder_lattice, scalarflow_initial_lattice, stabilize
 
-__all__ = ["init", "current", "is_running", "real", "resolve_arch", "TERMS", "Buoyancy", "Drag", "Viscosity", "Vorticity",
-           "Wind", "register_term", "ModelConfig", "STRUCTURES", "AirDomain", "AirState", "AmbientAir", "Entrainment", "SolverConfig",
+__all__ = ["init", "current", "is_running", "real", "resolve_arch", "TERMS", "Buoyancy", "Drag", "Viscosity",
+           "Vorticity", "Wind", "register_term", "ModelConfig", "STRUCTURES", "AirDomain", "AirState", "AmbientAir",
+           "Entrainment", "SolverConfig",
            "rest_density_for_lattice",
            "NeighborOverflow", "NeighborTable", "PBFSimulator", "step_particles", "FieldQuery",
            "divergence_on_grid", "mean_abs_divergence", "simulate_step", "velocity_at", "density_at", "advect",

@@ -182,17 +182,6 @@ def delta_adjoint(n: int, it: int, h: float, w_coef: float, g_coef: float, rho0:
 
 
 @ti.kernel
-def apply_delta(n: int, it: int, averaging: ti.template(), count: ti.template(), dp: ti.template(),
-                x: ti.template()):
-    # x^{k+1} = x^k + dp (divided by the neighbour count with constraint averaging)
-    for i in range(n):
-        if ti.static(averaging):
-            x[it + 1, i] = x[it, i] + dp[it, i] / ti.max(1.0, ti.cast(count[i], float))
-        else:
-            x[it + 1, i] = x[it, i] + dp[it, i]
-
-
-@ti.kernel
 def update_velocity(n: int, last: int, dt: float, p: ti.template(), x: ti.template(), u_out: ti.template()):
     # u_t = (p_t - p_{t-1}) / dt   (Macklin & Mueller 2013, Algorithm 1)
     for i in range(n):

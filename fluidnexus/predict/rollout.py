@@ -1,10 +1,11 @@
 """Physics-only rollout from a reconstructed state (FluidNexus Alg. S2, step 1).
 
-Each future frame t repeats what the reconstruction does before its fit, without the fit: the emitter seeds
-frame t's particles (the new Gaussians look like the recently emitted ones of the reconstruction, ``inflow_look``), the PBF gas steps (p_t, u_t) = Sim(u_{t-1}, p_{t-1}) (with the interaction's wind term and
-obstacle if any), the visual particles are advected x_t = x_{t-1} + dt V_t(x_{t-1}) (Eq. 2) and pushed out of an
-obstacle, and physical particles left without a neighbour are deleted (as in the release). A model whose structure is
-the gas in ambient air rolls out in air instead (``air.py``).
+Each future frame t repeats what the reconstruction does before its fit, without the fit: the emitter seeds frame
+t's particles (the new Gaussians look like the recently emitted ones of the reconstruction, ``inflow_look``), the
+PBF gas steps (p_t, u_t) = Sim(u_{t-1}, p_{t-1}) (with the interaction's wind term and obstacle if any, and the
+model's entrainment), the visual particles are advected x_t = x_{t-1} + dt V_t(x_{t-1}) (Eq. 2) and pushed out of an
+obstacle, and physical particles left without a neighbour are deleted (as in the release). A model whose structure
+is the gas in ambient air rolls out in air instead (``air.py``).
 """
 from __future__ import annotations
 

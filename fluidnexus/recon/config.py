@@ -11,7 +11,7 @@ loss unit) by the scene's length-scale factor (``fluidnexus.scene_scale``, docs/
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass, fields
 
 from ..errors import InputError
 

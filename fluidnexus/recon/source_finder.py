@@ -18,9 +18,10 @@ from the first frames with smoke, across every usable view, through multi-view v
    frames, in m/s. The emission window starts at t0 when the smoke appears after the run's first frame.
 
 The hulls see smoke where a view differs from what it sees behind the smoke (its clean plate, the scene's
-``backdrop_color``, or black: ``scenery.backdrop``) and not inside an obstacle. A declared source keeps its direction, radius, speed and window; its centre moves to the foot of the first frame's
-hull along its direction when the frame has smoke (for an upward source: the centre of the hull's lowest slab, the
-behaviour of every earlier version). What was found, and how, is recorded in run.json (``source_finder``).
+``backdrop_color``, or black: ``scenery.backdrop``) and not inside an obstacle. A declared source keeps its
+direction, radius, speed and window; its centre moves to the foot of the first frame's hull along its direction when
+the frame has smoke (for an upward source: the centre of the hull's lowest slab, the behaviour of every earlier
+version). What was found, and how, is recorded in run.json (``source_finder``).
 """
 from __future__ import annotations
 

@@ -95,7 +95,8 @@ steps = ["recon", "eval"]
 
 
 def test_the_issue_example_reads(tmp_path):
-    """The manifest of docs/batch.md's example as written (its PINF capture replaced by a file at the same relative path)."""
+    """The manifest of docs/batch.md's example as written (its PINF capture replaced by a file at the same relative
+    path)."""
     info = tmp_path / "shared" / "data" / "pinf_sphere" / "info.json"
     info.parent.mkdir(parents=True)
     info.write_text("{}")

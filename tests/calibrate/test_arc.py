@@ -39,7 +39,8 @@ def test_arc_geometry():
 
 
 @pytest.mark.parametrize("kwargs, option", [({"fov_deg": 0.0}, "--fov-deg"), ({"views": 1}, "--views"),
-                                             ({"distance": -1.0}, "--distance"), ({"arc_deg": float("nan")}, "--arc-deg")])
+                                             ({"distance": -1.0}, "--distance"),
+                                             ({"arc_deg": float("nan")}, "--arc-deg")])
 def test_impossible_rig(kwargs, option):
     args = dict(width=64, height=48, fov_deg=40.0) | kwargs
     with pytest.raises(InputError) as err:

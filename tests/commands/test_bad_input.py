@@ -120,7 +120,8 @@ def test_two_modes_at_once(tmp_path):
 
 
 def test_bad_scale_distance(tmp_path):
-    r = calibrate("--images", tmp_path / "a.png", tmp_path / "b.png", "--scale-distance", "a,b,-1", "--out", tmp_path / "s")
+    r = calibrate("--images", tmp_path / "a.png", tmp_path / "b.png", "--scale-distance", "a,b,-1", "--out",
+                  tmp_path / "s")
     assert_clean_failure(r, "--scale-distance")
 
 

@@ -17,12 +17,13 @@ SPACING, INFLOW, JITTER = 0.015, 0.25, 0.2
 
 
 def simulate_pbf(frames: int, alpha: float = -0.04, k: float = 3.0, grid: Grid = Grid(), seed: int = 0,
-                 entrainment: float | None = None, spacing: float = SPACING) -> np.ndarray:
+                 entrainment: float | None = None, spacing: float = SPACING, iterations: int = 6) -> np.ndarray:
     """Smoke density [frames, nx, ny, nz] (particle counts per grid cell) of the paper's gas, frame 0 empty;
     ``entrainment``: the gas's entrainment coefficient (engine/entrainment.py), None for none; ``spacing``: the
-    lattice [m]."""
+    lattice [m]; ``iterations``: solver iterations per step."""
     h = spacing / 0.45
-    solver = engine.SolverConfig(h=h, rest_density=engine.rest_density_for_lattice(spacing, h, 1.44), iterations=6,
+    solver = engine.SolverConfig(h=h, rest_density=engine.rest_density_for_lattice(spacing, h, 1.44),
+                                 iterations=iterations,
                                  dt=1.0 / grid.fps)
     src = engine.SourceDisk(center=grid.source, radius=grid.source_radius, spacing=spacing, jitter=0.3)
     parts = engine.PhysicalParticles(src.count * frames + 16)
