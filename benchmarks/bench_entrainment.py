@@ -9,7 +9,6 @@ the same run.
 import argparse
 import platform
 import sys
-import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -18,18 +17,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from benchmarks.bench_pbf import CASES, _time  # noqa: E402
 from fluidnexus import engine  # noqa: E402
 from fluidnexus.engine.entrainment import Entrainment, entrain  # noqa: E402
-
-CASES = (("4.6k (ScalarFlow)", 0.08), ("39k (FluidNexus-Smoke)", 0.90))
-
-
-def _time(fn, repeats: int) -> float:
-    fn()
-    t = time.perf_counter()
-    for _ in range(repeats):
-        fn()
-    return (time.perf_counter() - t) / repeats * 1000.0
 
 
 def main() -> None:

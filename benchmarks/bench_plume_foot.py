@@ -42,13 +42,16 @@ from fluidnexus.video import read_footage  # noqa: E402
 ACROSS = (0.3, 0.7)  # the plume's place across the box (x, z shares)
 
 
-def capture(seed: int, out: Path) -> tuple[Path, dict]:
+def capture(seed: int, out: Path, **changes) -> tuple[Path, dict]:
+    """The scene ``seed`` at size small, its plume upright on its floor off the box's centre (``ACROSS``), with
+    ``changes`` to the generator's other arguments (e.g. its backdrop); (info.json, truth.json's content)."""
     spec = draw(seed, "small")
     lo, hi = np.asarray(spec.lo), np.asarray(spec.hi)
     centre = lo + np.array([ACROSS[0], 0.03, ACROSS[1]]) * (hi - lo)
     info = out / "info.json"
     if not info.exists():
-        generate(seed, out, "small", source=replace(spec.source, center=tuple(centre), direction=(0.0, 1.0, 0.0)))
+        generate(seed, out, "small", source=replace(spec.source, center=tuple(centre), direction=(0.0, 1.0, 0.0)),
+                 **changes)
     return info, json.loads((out / "truth.json").read_text())
 
 

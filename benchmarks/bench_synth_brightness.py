@@ -25,7 +25,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -33,28 +32,20 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from benchmarks.bench_plume_foot import capture as plume_foot_capture  # noqa: E402
 from benchmarks.cli_steps import timed_command  # noqa: E402
-from benchmarks.scenes import draw, generate  # noqa: E402
+from benchmarks.scenes import draw  # noqa: E402
 from benchmarks.scenes.spec import Backdrop, Smoke  # noqa: E402
 from benchmarks.scenes.splits import check_seeds  # noqa: E402
 from benchmarks.brightness import brightness_ratios  # noqa: E402
 from fluidnexus.scene import load_ground_truth, load_scene  # noqa: E402
 from fluidnexus.video import read_footage  # noqa: E402
 
-ACROSS = (0.3, 0.7)  # the plume's place across the box (x, z shares)
-
-
 def capture(seed: int, out: Path) -> tuple[Path, dict]:
     """The development scene ``seed`` at size small, upright on its floor off the box's centre, glowing on black."""
-    spec = draw(seed, "small")
-    lo, hi = np.asarray(spec.lo), np.asarray(spec.hi)
-    centre = lo + np.array([ACROSS[0], 0.03, ACROSS[1]]) * (hi - lo)
-    info = out / "info.json"
-    if not info.exists():
-        generate(seed, out, "small", source=replace(spec.source, center=tuple(centre), direction=(0.0, 1.0, 0.0)),
-                 backdrop=Backdrop("black"), smoke=Smoke("glowing", (0.9, 0.9, 0.9), spec.smoke.tau),
-                 obstacles=(), set_pieces=())
-    return info, json.loads((out / "truth.json").read_text())
+    return plume_foot_capture(seed, out, backdrop=Backdrop("black"),
+                              smoke=Smoke("glowing", (0.9, 0.9, 0.9), draw(seed, "small").smoke.tau), obstacles=(),
+                              set_pieces=())
 
 
 def measure(scene_dir: Path, real: dict[str, Path], frames: int | None, true_foot=None) -> dict:
