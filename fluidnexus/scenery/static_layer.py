@@ -173,14 +173,17 @@ def _ray_seeds(index: int, cameras, plates, confidences, depth: DepthMap, fill: 
 
 
 def _sees_backdrop(depth: DepthMap, lo: np.ndarray, hi: np.ndarray, cfg: StaticConfig) -> bool:
-    """Whether the view shows a textured backdrop: at least ``cfg.backdrop`` of its pixels have a confirmed depth
-    whose point lies outside the volume."""
+    """Whether the view shows a textured backdrop: at least ``cfg.backdrop`` of its pixels have a confirmed point
+    behind the volume (further from the camera than any point of the volume's bounding sphere). A surface that
+    runs out of the volume beside it (PINF Game's stairs) is no backdrop: a ray of it without a confirmed depth
+    would seed far behind the stairs, a floater for any camera that looks past them."""
     cam = depth.camera
     rows, cols = np.nonzero(np.isfinite(depth.depth))
     if len(rows) == 0:
         return False
     points = cam.unproject(np.stack([cols + 0.5, rows + 0.5], axis=1), depth.depth[rows, cols])
-    return int((~in_box(points, lo, hi)).sum()) >= cfg.backdrop * cam.width * cam.height
+    reach = float(np.linalg.norm(cam.center - 0.5 * (lo + hi))) + 0.5 * float(np.linalg.norm(hi - lo))
+    return int((np.linalg.norm(points - cam.center, axis=1) > reach).sum()) >= cfg.backdrop * cam.width * cam.height
 
 
 def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backdrop=None) -> StaticLayer:
