@@ -15,7 +15,7 @@ own plates (how far the fit overfits). ``--composite WORK`` first writes the rec
 composite (tests/recon/backdrop_scene.py: the ScalarFlow sample over a plane of gray waves, four views in, train02
 held out, at 0.25 of the sample's size) into WORK with the input views' true plates, and scores that scene.
 The background colour is scene.json's ``backdrop_color`` when it has one, as in recon. ``--set`` overrides a
-``StaticConfig`` field (numbers only); ``--set inner_tolerance=inf --plates-median`` is the layer before 2026-11-26.
+``StaticConfig`` field (numbers only); ``--plates-median`` ignores ``backdrop_color``.
 The ground truth is read for scoring only. ``--save DIR`` writes the layer's render, the median and the input
 plates as PNG files for a look.
 """
