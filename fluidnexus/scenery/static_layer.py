@@ -9,9 +9,10 @@ The fit is a small 3D Gaussian splatting optimisation (Kerbl et al. 2023):
   view sees through (``scenery.static_hull``: a surface without texture, which the stereo cannot place); a ray
   without a confirmed depth seeds on a shell ``shell`` half-diagonals beyond the volume's centre when its view
   shows a textured backdrop (which hides the seed from other cameras), and nothing otherwise. A ray or node
-  showing the plates' median colour (within ``plain``) seeds nothing: a plain colour has no depth, and the learned
+  showing the background colour (within ``plain``) seeds nothing: a plain colour has no depth, and the learned
   background colour already shows it (a white backdrop is not filled with white Gaussians). What lies beyond
-  every Gaussian is one learned colour (initialised to the plates' median).
+  every Gaussian is one learned colour, initialised to the scene's known backdrop colour (PINF's
+  ``frame_bkg_color``: Game's black sky) or else to the plates' median.
 - **Loss** per view: ``0.8 L1 + 0.2 (1 - SSIM)`` (the reconstruction's image loss) weighted by the plate's
   confidence w: the target is ``w plate + (1 - w) render`` and the render's gradient is scaled by w (the render's
   share held fixed), so a pixel of confidence 0 (smoke that never left) pulls nothing and what the plate shows
@@ -59,11 +60,13 @@ class StaticConfig:
     iterations: int = 400
     rays: int = 32  # rays per image side per view
     lattice: int = 24  # nodes along the volume's size for the seeds no view sees through (scenery.static_hull)
+    inner_tolerance: float = 3.0  # a depth confirmed inside the volume carves the hull's nodes more than this many
+    # lattice spacings in front of it (scenery.static_hull)
     stereo: StereoConfig = StereoConfig()  # the seeds' depths (scenery.stereo)
     shell: float = 2.0  # seeds without a confirmed depth lie this many half-diagonals beyond the volume's centre
     backdrop: float = 0.05  # a view shows a textured backdrop when this share of its pixels has a confirmed depth
     # outside the volume
-    plain: float = 0.03  # rays whose colour is within this of the plates' median colour seed nothing
+    plain: float = 0.03  # rays whose colour is within this of the background colour seed nothing
     initial_opacity: float = 0.5
     lr_position: float = 2e-3  # x the volume's size per step
     lr_scale: float = 0.01
@@ -170,32 +173,37 @@ def _ray_seeds(index: int, cameras, plates, confidences, depth: DepthMap, fill: 
 
 
 def _sees_backdrop(depth: DepthMap, lo: np.ndarray, hi: np.ndarray, cfg: StaticConfig) -> bool:
-    """Whether the view shows a textured backdrop: at least ``cfg.backdrop`` of its pixels have a confirmed depth
-    whose point lies outside the volume."""
+    """Whether the view shows a textured backdrop: at least ``cfg.backdrop`` of its pixels have a confirmed point
+    behind the volume (further from the camera than any point of the volume's bounding sphere). A surface that
+    runs out of the volume beside it (PINF Game's stairs) is no backdrop: a ray of it without a confirmed depth
+    would seed far behind the stairs, a floater for any camera that looks past them."""
     cam = depth.camera
     rows, cols = np.nonzero(np.isfinite(depth.depth))
     if len(rows) == 0:
         return False
     points = cam.unproject(np.stack([cols + 0.5, rows + 0.5], axis=1), depth.depth[rows, cols])
-    return int((~in_box(points, lo, hi)).sum()) >= cfg.backdrop * cam.width * cam.height
+    reach = float(np.linalg.norm(cam.center - 0.5 * (lo + hi))) + 0.5 * float(np.linalg.norm(hi - lo))
+    return int((np.linalg.norm(points - cam.center, axis=1) > reach).sum()) >= cfg.backdrop * cam.width * cam.height
 
 
-def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig) -> StaticLayer:
+def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backdrop=None) -> StaticLayer:
     """The seeds of a fit (module docstring), deterministic in ``cfg.seed``; plate pixels with confidence under
-    0.5 are not read (the median colour is taken over the sure pixels of every plate)."""
+    0.5 are not read. The background colour is ``backdrop`` (RGB) when given, else the median colour of the sure
+    pixels of every plate."""
     lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
     generator = torch.Generator().manual_seed(cfg.seed)
     sure = np.concatenate([p[c >= 0.5] for p, c in zip(plates, confidences)])
     if len(sure) == 0:
         raise InputError(None, "backgrounds", "every plate pixel has confidence under 0.5: nothing to fit")
-    median = np.median(sure, axis=0)
+    background = np.median(sure, axis=0) if backdrop is None else _channels(backdrop, sure.shape[-1])
     depths = depth_maps(cameras, plates, confidences, lo, hi, cfg.stereo)
-    nodes, node_colors = hull_points(depths, lo, hi, median, cfg.lattice, cfg.plain)
+    nodes, node_colors = hull_points(depths, lo, hi, background, cfg.lattice, cfg.plain,
+                                     inner_tolerance=cfg.inner_tolerance)
     node_spacing = box_size(hi - lo) / cfg.lattice
     points, colors = [nodes], [node_colors]
     spacing = [np.full(len(nodes), node_spacing)]
     for index, camera in enumerate(cameras):
-        p, c = _ray_seeds(index, cameras, plates, confidences, depths[index], median, lo, hi, cfg, generator)
+        p, c = _ray_seeds(index, cameras, plates, confidences, depths[index], background, lo, hi, cfg, generator)
         points.append(p)
         colors.append(c)
         # each seed as wide as its ray's pixel footprint at its depth
@@ -206,7 +214,13 @@ def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig) -> St
     colors = np.concatenate(colors).reshape(len(means), plates[0].shape[-1])
     return StaticLayer(means.astype(np.float32), np.tile(0.5 * spacing[:, None], (1, 3)).astype(np.float32),
                        quats.astype(np.float32), np.full(len(means), cfg.initial_opacity, np.float32),
-                       colors.astype(np.float32), median.astype(np.float32))
+                       colors.astype(np.float32), background.astype(np.float32))
+
+
+def _channels(color, channels: int) -> np.ndarray:
+    """An RGB colour as ``channels`` values (its mean for one channel)."""
+    color = np.asarray(color, np.float64)
+    return np.full(1, color.mean()) if channels == 1 else color
 
 
 # ---- the optimisation ------------------------------------------------------------------------------------------
@@ -314,7 +328,7 @@ def _check_inputs(cameras, plates, confidences) -> None:
                                                   f"{camera.width}x{camera.height}")
 
 
-def fit_static(cameras, plates, confidences, lo, hi, cfg: StaticConfig = StaticConfig()) -> StaticLayer:
+def fit_static(cameras, plates, confidences, lo, hi, cfg: StaticConfig = StaticConfig(), backdrop=None) -> StaticLayer:
     """Fit a static layer to clean plates.
 
     Args:
@@ -322,6 +336,8 @@ def fit_static(cameras, plates, confidences, lo, hi, cfg: StaticConfig = StaticC
         plates: [V] arrays [H, W, C] in [0, 1]; confidences: [V] arrays [H, W] in [0, 1].
         lo, hi: the scene volume's corners (metres); every length of the fit follows its size.
         cfg: settings; ``cfg.seed`` makes the fit deterministic.
+        backdrop: a known colour beyond everything (RGB, scene.json ``backdrop_color``: PINF Game's black sky), or
+            None for the plates' median colour; what shows it seeds nothing, and the background colour starts at it.
     Returns:
         The fitted :class:`StaticLayer`; ``info`` holds the final loss, the Gaussian count and the settings.
     """
@@ -332,7 +348,7 @@ def fit_static(cameras, plates, confidences, lo, hi, cfg: StaticConfig = StaticC
     dtype = torch_dtype()
     targets = [torch.as_tensor(np.asarray(p), dtype=dtype) for p in plates]
     weights = [torch.as_tensor(np.asarray(c), dtype=dtype)[..., None] for c in confidences]
-    params = _Params(initial_layer(cameras, plates, confidences, lo, hi, cfg), dtype)
+    params = _Params(initial_layer(cameras, plates, confidences, lo, hi, cfg, backdrop), dtype)
     opt = _optimizer(params, cfg, size)
     n = params.tensors["means"].shape[0]
     grad_sum, seen = np.zeros(n), np.zeros(n)

@@ -78,9 +78,9 @@ def test_the_smoke_the_footage_shows_is_never_inside_a_body(stairs, found):
     assert len(smoke) > 1000
     inside = (join(*(b.engine_body() for b in found)).distance(smoke) < 0).sum()
     assert inside == 0
-    # without the footage the carved floor reaches up into the smoke over it
+    # without the footage the carved floor reached up into 1,434 of these points while faint Gaussians floated over
+    # it (before the hull's nodes above the floor were carved, 2026-11-26); the footage's smoke stays free either way
     blind = find_obstacles(layer, cameras, LO, HI)
-    assert (join(*(b.engine_body() for b in blind)).distance(smoke) < 0).sum() > 0.05 * len(smoke)
     # the dent the smoke's hull leaves in the floor under it is small: the floor and the steps stay a body
     pts = _lattice()
     solid = in_body(pts) & (np.linalg.norm(pts - BALL_CENTER, axis=1) > BALL_RADIUS)

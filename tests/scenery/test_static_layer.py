@@ -183,3 +183,18 @@ def test_one_view_places_nothing(ti_engine):
     assert len(layer) == 0 and layer.background.shape == (3,)
     assert render_static(layer, cam)[0].shape == (24, 24, 3)
     assert find_obstacles(layer, [cam], LO, HI) == []
+
+
+def test_a_known_backdrop_colour_starts_the_background(ti_engine):
+    """scene.json's backdrop_color (RGB) is the background colour the fit starts from, as one gray value for
+    one-channel plates; without it the plates' median colour is."""
+    from fluidnexus.scenery.static_layer import StaticConfig, initial_layer
+
+    cam = camera(0, size=24)
+    plate = render(cam)
+    sure = [np.ones(plate.shape[:2], np.float32)]
+    cfg = StaticConfig(iterations=0)
+    assert np.allclose(initial_layer([cam], [plate], sure, LO, HI, cfg, (0.0, 0.2, 0.4)).background, [0, 0.2, 0.4])
+    gray = plate.mean(axis=-1, keepdims=True)
+    assert np.allclose(initial_layer([cam], [gray], sure, LO, HI, cfg, (0.0, 0.2, 0.4)).background, [0.2])
+    assert np.allclose(initial_layer([cam], [gray], sure, LO, HI, cfg).background, np.median(gray.reshape(-1, 1), 0))
