@@ -33,15 +33,15 @@ def structure_params(params) -> dict:
     return {"alpha": params.alpha, "drag_k": params.k, "layers_per_second": params.layers}
 
 
-def model_dict(fit, setup, emission) -> dict:
+def model_dict(fit, setup, emission, source_from: str) -> dict:
     """model.json: the engine model (``ModelConfig.to_dict``, its structure included), the appearance and source
-    extensions, and the source's emission window (``emission``: emission.Emission; predict and interact emit only
-    inside it when the run's scene declares none)."""
+    extensions, the source's emission window (``emission``: emission.Emission; predict and interact emit only
+    inside it when the run's scene declares none) and where the source came from (``run.plume_source``)."""
     p = fit.params
     spacing = setup.spacing * (AIR_SPACING if p.structure == "ambient_air" else 1.0)
     return {"format": MODEL_FORMAT, "model": p.model().to_dict(), "solver": setup.solver_for(p.structure).to_dict(),
             "source": {"center": list(setup.source_center), "radius": setup.source_radius,
-                       "spacing": spacing, "swirl_omega": float(p.ext("swirl", "omega")),
+                       "spacing": spacing, "swirl_omega": float(p.ext("swirl", "omega")), "from": source_from,
                        "window": [emission.start, emission.stop], "window_from": emission.source},
             "appearance": {"gain": p.gain, "dissipation_rate": float(p.ext("dissipation", "rate"))},
             "extensions": {k: _jsonable(v) for k, v in p.extensions.items()}}
@@ -58,10 +58,11 @@ def width_slope(q) -> float | None:
 
 def write_outputs(out_dir: Path, observed, bases: dict, structure: str, fits: dict, judged: dict, finding: str,
                   train, validate, fitter, spread: tuple[int, float], emission, seconds: float,
-                  explanations: list) -> dict:
+                  explanations: list, source_from: str) -> dict:
     """``bases``: the control fit of each structure; ``structure``: the chosen one; ``fits`` and ``judged``: the
     candidates on it; ``emission``: the source's emission window (emission.Emission); ``explanations``: every
-    explanation that passes, (structure, term, validation error), the chosen first (run.explain)."""
+    explanation that passes, (structure, term, validation error), the chosen first (run.explain); ``source_from``:
+    where the simulated plume's source came from (run.plume_source)."""
     out_dir.mkdir(parents=True, exist_ok=True)
     a = train[0]
     va = np.arange(validate[0] - a, validate[1] - a)
@@ -92,7 +93,7 @@ def write_outputs(out_dir: Path, observed, bases: dict, structure: str, fits: di
                             "gain": {"metric": "validation_image_error",
                                      "before": float(bases["paper_gas"].errors[va].mean()), "after": b_err}}}
     write_json(out_dir / "report.json", report)
-    write_json(out_dir / "model.json", model_dict(chosen, fitter.sim.setup, emission))
+    write_json(out_dir / "model.json", model_dict(chosen, fitter.sim.setup, emission, source_from))
     text = _markdown(report, observed, bases, structure, fits, judged, finding, va, plots, fitter, spread, emission,
                      seconds)
     (out_dir / "report.md").write_text(text)

@@ -10,8 +10,9 @@ from pathlib import Path
 import numpy as np
 
 from fluidnexus.errors import InputError
-from fluidnexus.scene import load_ground_truth, load_scene
-from fluidnexus.scene_scale import DIAGNOSE_SPACING, PLUME_BOX_ABOVE, PLUME_BOX_BELOW, scene_factor
+from fluidnexus.scene import UP, load_ground_truth, load_scene
+from fluidnexus.recon.source_finder import MIN_POINTS, foot, foot_radius
+from fluidnexus.scene_scale import DIAGNOSE_SPACING, PLUME_BOX_ABOVE, PLUME_BOX_BELOW, SOURCE_SLAB, scene_factor
 from fluidnexus.scenery.world import scene_obstacles
 
 from .emission import emission_window
@@ -51,13 +52,32 @@ def load_observed(scene_dir: Path, first: int, last: int, height: int, layer=Non
     return Observed(tuple(names), tuple(cams), np.asarray(imgs, np.float64), first, scene.fps)
 
 
-def visual_hull(observed: Observed, lo, hi, spacing: float, level: float = 0.15) -> np.ndarray:
-    """Lattice points [M, 3] inside every view's smoke silhouette at the first frame (intensity above
-    ``level`` x that view's peak); none when a view shows no smoke."""
+def plume_source(scene, observed: Observed, spacing: float, factor: float) -> tuple[tuple, str]:
+    """((centre, radius), where it came from) of the simulated plume's upward source disk: the scene's declared
+    source; else, in a scene with a volume, the foot of the earliest smoke the views' hull holds (the centre of its
+    lowest slab and the slab's spread, as recon's source finder takes the foot; ``recon.source_finder.foot``);
+    else ScalarFlow's inflow (``DEFAULT_SOURCE``)."""
+    if scene.source is not None:
+        return (tuple(scene.source.center), float(scene.source.radius)), "declared"
+    if scene.volume is not None:
+        lo, hi = np.asarray(scene.volume.min, float), np.asarray(scene.volume.max, float)
+        slab = max(SOURCE_SLAB * factor, spacing)
+        for t in range(observed.images.shape[1]):
+            points = visual_hull(observed, lo, hi, spacing, frame=t)
+            if len(points) >= MIN_POINTS:
+                center, base = foot(points, UP, slab)
+                return ((tuple(float(v) for v in center), foot_radius(base, center, UP, spacing)),
+                        f"found: the foot of the smoke in frame {observed.first + t}")
+    return DEFAULT_SOURCE, "none declared and no smoke in a volume: ScalarFlow's inflow"
+
+
+def visual_hull(observed: Observed, lo, hi, spacing: float, level: float = 0.15, frame: int = 0) -> np.ndarray:
+    """Lattice points [M, 3] inside every view's smoke silhouette at ``frame`` (an index into the observed
+    frames; intensity above ``level`` x that view's peak); none when a view shows no smoke."""
     axes = [np.arange(a + 0.5 * spacing, b, spacing) for a, b in zip(lo, hi)]
     pts = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
     keep = np.ones(len(pts), bool)
-    for cam, img in zip(observed.cameras, observed.images[:, 0]):
+    for cam, img in zip(observed.cameras, observed.images[:, frame]):
         if img.max() <= 1e-3:
             return np.zeros((0, 3))
         uv, depth = cam.project(pts)
@@ -106,7 +126,8 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
     factor = scene_factor(scene)
     spacing = DIAGNOSE_SPACING * factor if spacing is None else spacing
     observed = load_observed(scene_dir, a, d, height, run_layer(run_dir))
-    src = (scene.source.center, scene.source.radius) if scene.source else DEFAULT_SOURCE
+    src, src_from = plume_source(scene, observed, spacing, factor)
+    log.info("diagnose: the source at (%.4g, %.4g, %.4g), radius %.4g (%s)", *src[0], src[1], src_from)
     if scene.volume:
         lo, hi = np.asarray(scene.volume.min, float), np.asarray(scene.volume.max, float)
     else:
@@ -180,7 +201,7 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
     log.info("explanations that pass (lowest validation error first): %s",
              "; ".join(f"{st} + {name}: {err:.4f}" for st, name, err in explanations))
     report = write_outputs(out_dir, observed, bases, structure, fits[structure], judged[structure], finding, (a, b),
-                           (c, d), fitter, spread, emission, time.perf_counter() - started, explanations)
+                           (c, d), fitter, spread, emission, time.perf_counter() - started, explanations, src_from)
     log.info("diagnose: finding %s (%d rollouts, %.0f s)", finding, fitter.evaluations,
              time.perf_counter() - started)
     return report

@@ -146,3 +146,22 @@ def test_obstacles_of_a_run_are_the_runs(template, tmp_path, ti_engine):
     body = Obstacles(str(scene_dir), str(run)).body()
     assert body.center == (0.33, 0.1, -0.25) and body.radius == 0.04
     assert Obstacles(str(scene_dir)).body().center == body.center
+
+
+def test_a_scene_without_a_source_gets_the_foot_of_its_smoke(template, tmp_path):
+    """A scene that declares no source (a PINF import): the simulated plume's source is the foot of the earliest
+    smoke the views' hull holds, near the generator's inflow disk, not ScalarFlow's inflow."""
+    from fluidnexus.diagnose.run import DEFAULT_SOURCE, plume_source
+    from fluidnexus.scene import load_scene
+
+    grid = Grid()
+    scene_dir = write_scene(template, tmp_path / "scene", simulate(12, PlumeEffects()))
+    data = json.loads((scene_dir / "scene.json").read_text())
+    del data["source"]
+    (scene_dir / "scene.json").write_text(json.dumps(data))
+    observed = load_observed(scene_dir, 0, 12, 40)
+    (center, radius), how = plume_source(load_scene(scene_dir), observed, 0.02, 1.0)
+    assert how.startswith("found"), how
+    error = np.linalg.norm(np.subtract(center, grid.source))  # measured 1.5 cm (one 2 cm lattice layer above)
+    assert error < 0.02 and error < np.linalg.norm(np.subtract(center, DEFAULT_SOURCE[0])) / 2, (center, error)
+    assert abs(radius - grid.source_radius) < 0.4 * grid.source_radius, radius  # measured 0.058 for 0.05
