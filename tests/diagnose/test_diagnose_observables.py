@@ -36,12 +36,29 @@ def test_observables_track_a_moving_blob():
     assert np.all(np.abs(obs.rise_speed[1:-1] - 0.3) < 0.1)  # front rises 1 cm per frame = 0.3 m/s
 
 
-def test_judge_passes_a_clear_gain_and_refuses_noise():
+def _fit(train_error: float, validation_errors, extensions=None) -> Fit:
+    """A fit scored on 4 training frames (each ``train_error``) and the validation frames after them."""
+    return Fit(PlumeParams(extensions=extensions or {}), None, None,
+               np.concatenate([np.full(4, train_error), validation_errors]))
+
+
+def test_judge_passes_a_clear_gain_that_its_term_carries():
     rng = np.random.default_rng(1)
     before = 0.5 + 0.05 * rng.random(30)
-    assert judge(before, 0.6 * before).passes
-    assert not judge(before, before).passes
-    assert not judge(before, before * (1 + 0.05 * rng.normal(size=30))).passes
+    tr, va = np.arange(4), np.arange(4, 34)
+    base, wind = _fit(0.10, before), {"wind": {"velocity": (0.1, 0.0, 0.0)}}
+    gain = _fit(0.09, 0.6 * before, wind)
+    off = _fit(0.10, before)  # the candidate with its term switched off: the base again
+    assert judge(base, gain, tr, va, off).passes
+    assert not judge(base, gain, tr, va).passes  # whether the term carries it is not known yet
+    assert not judge(base, _fit(0.10, before, wind), tr, va, off).passes
+    assert not judge(base, _fit(0.10, before * (1 + 0.05 * rng.normal(size=30)), wind), tr, va, off).passes
+    # a clear validation gain with a higher training error: a nested search found nothing on its frames
+    assert not judge(base, _fit(0.11, 0.6 * before, wind), tr, va, off).passes
+    # the gain is not the term's: without the term (the rest as fitted) the validation error is as low
+    assert not judge(base, gain, tr, va, _fit(0.09, 0.61 * before)).passes
+    # entrainment refits the base parameters (its search does not nest the control): training may end higher
+    assert judge(base, _fit(0.11, 0.6 * before, {"entrainment": {"alpha": 0.1}}), tr, va, off).passes
 
 
 def test_search_spread_counts_base_fits_the_training_frames_cannot_tell_apart():
@@ -120,8 +137,9 @@ def test_gains_within_the_search_spread_are_named_with_the_footage_that_would_te
     from fluidnexus.diagnose.plume import EXTENSIONS
     from fluidnexus.diagnose.search import FOOTAGE_HINTS, Judgement, indistinct
 
-    judged = {"wind": Judgement(1.0, 0.6, 0.40, 1e-6), "dissipation": Judgement(1.0, 0.85, 0.15, 1e-3),
-              "swirl": Judgement(1.0, 1.1, -0.10, 0.9)}
+    judged = {"wind": Judgement(1.0, 0.6, 0.40, 1e-6, 0.1, 0.09),
+              "dissipation": Judgement(1.0, 0.85, 0.15, 1e-3, 0.1, 0.09),
+              "swirl": Judgement(1.0, 1.1, -0.10, 0.9, 0.1, 0.1)}
     assert indistinct(judged, (5, 0.2)) == ["dissipation"]
     assert indistinct(judged, (5, 0.0)) == []
     assert set(FOOTAGE_HINTS) == set(EXTENSIONS)
