@@ -73,19 +73,16 @@ def main() -> None:
     from fluidnexus.scene import load_ground_truth, load_scene
     from fluidnexus.scenery.plate_store import read_plate
     from fluidnexus.scenery.static_layer import StaticConfig, fit_static, render_static
+    from fluidnexus.scenery.world import plates_at
     from fluidnexus.video import read_video
 
     engine.init(arch="cpu", precision="f32")
     scene = load_scene(scene_dir)
     names = [v.name for v in scene.usable_views() if v.name in scene.backgrounds]
-    cameras, plates, confidences = [], [], []
-    for name in names:
-        camera = scene.view(name).camera.scaled(args.scale)
-        plate, conf = read_plate(scene, name)
-        size = (camera.width, camera.height)
-        cameras.append(camera)
-        plates.append(cv2.resize(plate, size, interpolation=cv2.INTER_AREA))
-        confidences.append(cv2.resize(conf, size, interpolation=cv2.INTER_AREA))
+    channels = read_plate(scene, names[0])[0].shape[-1]  # the plates as stored
+    named, plates, confidences = plates_at(scene, {n: scene.view(n).camera.scaled(args.scale) for n in names},
+                                           channels)
+    cameras = list(named.values())
     overrides = {k: float(v) if not v.isdigit() else int(v) for k, v in (s.split("=", 1) for s in args.set)}
     cfg = StaticConfig(iterations=args.iterations, seed=args.seed, **overrides)
     tic = time.perf_counter()

@@ -34,21 +34,16 @@ def main() -> None:
     from fluidnexus.scenery.found_obstacles import find_obstacles, refine_balls
     from fluidnexus.scenery.plate_store import read_plate
     from fluidnexus.scenery.static_layer import StaticConfig, fit_static, render_static
+    from fluidnexus.scenery.world import plates_at
     from fluidnexus.video import read_video
 
     engine.init(arch="cpu", precision="f32")
     scene = load_scene(args.scene)
     names = [v.name for v in scene.usable_views() if v.name in scene.backgrounds]
-    cameras, plates, confidences = [], [], []
-    import cv2
-
-    for name in names:
-        camera = scene.view(name).camera.scaled(args.scale)
-        plate, conf = read_plate(scene, name)
-        size = (camera.width, camera.height)
-        cameras.append(camera)
-        plates.append(cv2.resize(plate, size, interpolation=cv2.INTER_AREA))
-        confidences.append(cv2.resize(conf, size, interpolation=cv2.INTER_AREA))
+    channels = read_plate(scene, names[0])[0].shape[-1]  # the plates as stored
+    named, plates, confidences = plates_at(scene, {n: scene.view(n).camera.scaled(args.scale) for n in names},
+                                           channels)
+    cameras = list(named.values())
     tic = time.perf_counter()
     layer = fit_static(cameras, plates, confidences, scene.volume.min, scene.volume.max,
                        StaticConfig(iterations=args.iterations))
