@@ -7,11 +7,12 @@ side by side in as many processes as there are cores (``--jobs``, at most 6): 46
 the wind's (20 evaluations) 117 s; this file's fast tier 347 s (2026-11-26). ``make test`` runs the fast tier (the
 plain plume, the paper's-gas control, entrainment in the paper's gas, wind, dissipation) and the visibility test;
 ``make test-slow`` runs the rest. Buoyancy decay, vorticity confinement, viscosity and swirl are ``xfail``: their
-data differ from a plain plume with the same generator constants (``test_hidden_effects_are_visible``), but diagnose does not name them. Buoyancy
-decay cannot be named from this footage by any model: a plain plume with weaker buoyancy matches its training frames
-(``test_nearest_plain_plume_on_the_training_frames``). In a burst (the source on for the first part of the window
-only) it can (``test_nearest_plain_plume_in_a_burst``), and diagnose names it there, but with a tau 3x too long
-(xfail). The measured reasons are in each marker and in BENCHMARKS.md ("Diagnose: designs measured and not kept").
+data differ from a plain plume with the same generator constants (``test_hidden_effects_are_visible``), but diagnose
+does not name them. Buoyancy decay cannot be named from this footage by any model: a plain plume with weaker
+buoyancy matches its training frames (``test_nearest_plain_plume_on_the_training_frames``). In a burst (the source
+on for the first part of the window only) it can (``test_nearest_plain_plume_in_a_burst``), and diagnose names it
+there, but with a tau 3x too long (xfail). The measured reasons are in each marker and in BENCHMARKS.md ("Diagnose:
+designs measured and not kept").
 """
 from __future__ import annotations
 
