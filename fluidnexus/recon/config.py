@@ -51,7 +51,8 @@ class ReconConfig:
         color0, scale0, opacity0: constant initial appearance of the visual particles (colour and opacity replaced
             by the fitted initial look where ``initial_look`` says so).
         initial_look: ``constant`` (color0 and opacity0 as given), ``fit`` (one colour and one opacity fitted to the
-            first frame, ``fit.fit_look``, from color0 / opacity0; the fitted values are saved in config.json) or
+            earliest frame with smoke, ``fit.fit_look``, from color0 / opacity0; the fitted values are saved in
+            config.json) or
             ``auto``: fit on footage over a backdrop (a scene with clean plates or a backdrop colour other than
             black), constant on footage over black (the release's constants were tuned on ScalarFlow's glowing
             smoke on black).

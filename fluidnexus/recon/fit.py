@@ -1,6 +1,6 @@
 """The per-frame optimisations of FluidNexus Alg. S1.
 
-- :func:`fit_look`: frame 0, before the positions: one colour and one opacity shared by every visual particle
+- :func:`fit_look`: the earliest frame with smoke, before the positions: one colour and one opacity shared by every visual particle
   (the initial look; on footage over a backdrop the release's constants, tuned to faint smoke on black, can be far
   off, e.g. dense grey smoke on white).
 - :func:`fit_positions`: frame 0, visual positions only.

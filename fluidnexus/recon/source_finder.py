@@ -25,7 +25,7 @@ version). What was found, and how, is recorded in run.json (``source_finder``).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -43,11 +43,15 @@ FRONT_PERCENTILE = 98.0
 
 @dataclass(frozen=True)
 class FoundSource:
-    """The inflow, the first frame's hull points (the visual seeds) and a JSON record of how it was found."""
+    """The inflow, the first frame's hull points (the visual seeds), the earliest frame of the run with smoke and
+    its hull (``smoke_frame`` None when no frame has any: the initial look is fitted there) and a JSON record of how
+    it was found."""
 
     source: Source
     hull_points: np.ndarray
     record: dict
+    smoke_frame: int | None = None
+    smoke_hull: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
 
 def _axes(direction) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -101,19 +105,22 @@ def find_source(scene: Scene, obs, voxel: float, slab: float, fallback: Source, 
         return points if obstacle is None or not len(points) else points[obstacle.distance(points) > 0]
 
     seeds = hull(first)
-    if scene.source is not None:
-        src = scene.source
-        if len(seeds) < MIN_POINTS:
-            return FoundSource(src, seeds, {"method": "declared", "centre": "declared (no smoke in the first frame)"})
-        center, _ = foot(seeds, src.direction, slab)
-        found = Source(tuple(float(v) for v in center), src.radius, src.direction, src.speed, src.window)
-        return FoundSource(found, seeds, {"method": "declared", "centre": f"foot of the hull of frame {first}"})
     last = first + obs.num_frames
     t0, h0 = first, seeds
     while len(h0) < MIN_POINTS and t0 + 1 < last:
         t0 += 1
         h0 = hull(t0)
-    if len(h0) < MIN_POINTS:
+    smoke = (t0, h0) if len(h0) >= MIN_POINTS else (None, np.zeros((0, 3)))
+    if scene.source is not None:
+        src = scene.source
+        if len(seeds) < MIN_POINTS:
+            return FoundSource(src, seeds, {"method": "declared", "centre": "declared (no smoke in the first frame)"},
+                               *smoke)
+        center, _ = foot(seeds, src.direction, slab)
+        found = Source(tuple(float(v) for v in center), src.radius, src.direction, src.speed, src.window)
+        return FoundSource(found, seeds, {"method": "declared", "centre": f"foot of the hull of frame {first}"},
+                           *smoke)
+    if smoke[0] is None:
         return FoundSource(fallback, seeds, {"method": "fallback: no smoke in any frame of the run",
                                              "source": fallback.to_dict()})
     coarse = voxel * FOLLOW_COARSENING
@@ -144,4 +151,4 @@ def find_source(scene: Scene, obs, voxel: float, slab: float, fallback: Source, 
               "hull_voxels": [len(h) for h in hulls], "centroid_travel_m": round(moved, 6),
               "degrees_from_up": round(angle, 2),
               "direction": "up (no motion measured)" if moved < coarse else "centroid motion"}
-    return FoundSource(source, seeds, record)
+    return FoundSource(source, seeds, record, t0, h0)

@@ -113,3 +113,31 @@ def test_source_finder_finds_a_sideways_jet(tmp_path):
     declared = Source((0.3, 0.0, 0.0), 0.02, direction=tuple(direction / np.linalg.norm(direction)), speed=0.9)
     kept = find_source(replace(scene, source=declared), replace(obs, first=0), 0.01, 0.01, declared).source
     assert kept == declared  # frame 0 has no smoke: the declared source as it is
+
+
+def test_initial_look_is_fitted_where_the_smoke_first_shows(tmp_path, ti_engine):
+    """A jet switched on at frame 2: frame 0 shows nothing, so a look fitted there would be invisible (opacity near
+    0); it is fitted to frame 2's hull instead and comes out near the jet's own look."""
+    from fluidnexus.recon.fit import Views, fit_look
+    from fluidnexus.recon.run import _initial_look
+
+    direction = np.array([1.0, 0.25, -0.3])
+    cameras = tuple(Camera.look_at(48, 48, 55.0, eye, (0.15, 0.0, 0.0))
+                    for eye in ((0.15, 0.2, 1.0), (1.1, 0.3, 0.2), (-0.6, 0.4, -0.7)))
+    video = _jet_video(cameras, direction, start=2, frames=6)
+    views = tuple(View(f"cam{i}", "input", c, f"cam{i}.mp4") for i, c in enumerate(cameras))
+    scene = Scene(tmp_path, 30.0, 6, views, Volume((-0.2, -0.3, -0.3), (0.5, 0.3, 0.3)), None)
+    obs = Observations(tuple(v.name for v in views), cameras, 0, video)
+    found = find_source(scene, obs, 0.02, 0.02, Source((0.15, -0.3, 0.0), 0.02))
+    assert found.smoke_frame == 2 and len(found.smoke_hull) >= 8 and len(found.hull_points) == 0
+    cfg = ReconConfig(frames=(0, 6), initial_look="fit", views_per_iter=3)
+    at_zero = fit_look(torch.as_tensor(found.smoke_hull), Views(cameras, torch.as_tensor(video[:, 0]), ()), cfg,
+                       torch.Generator().manual_seed(0))
+    assert at_zero[1] < 0.02  # the premise: fitted to frame 0, the look is invisible
+    look = _initial_look(scene, cfg, obs, found, None, tmp_path, resume=False)
+    assert look.opacity0 > 0.05 and look.color0 > 0.3, (look.color0, look.opacity0)
+    # no smoke in any frame: the constants are kept
+    empty = find_source(scene, replace(obs, images=np.zeros_like(video)), 0.02, 0.02, Source((0.15, -0.3, 0.0), 0.02))
+    assert empty.smoke_frame is None
+    kept = _initial_look(scene, cfg, replace(obs, images=np.zeros_like(video)), empty, None, tmp_path, resume=False)
+    assert (kept.color0, kept.opacity0) == (cfg.color0, cfg.opacity0)
