@@ -26,8 +26,11 @@ the radius ratio, found speed / true inflow speed, the start frame. Obstacles: r
 (found only with plates) against the true ones: how many were found and the centre error of the nearest found body
 for each true one, in the true body's size (radius or half-diagonal).
 
+A step that fails (the tool's exit 2, e.g. a single video whose smoke does not start on the floor) makes a failed
+row with the tool's one-line message; it counts as beating no reference. A scene is prepared again from scratch
+unless every preparation step of an earlier run succeeded (W/seedN/PROTOCOL/prepared.json).
 ``--rescore`` computes the scores again from the runs and eval.json files already in W (steps not re-run, their
-timings kept). Results go to W/results/seedN-PROTOCOL.json (kept, so the development and held-out halves can be
+timings kept; failed rows stay as they are). Results go to W/results/seedN-PROTOCOL.json (kept, so the development and held-out halves can be
 run separately into the same W), W/table.json and W/table.md (every row, then the two halves' means side by side).
 Held-out seeds are refused unless ``--held-out`` is given (docs/scene-family.md: they are run only to fill the table).
 """
@@ -37,6 +40,7 @@ import argparse
 import json
 import math
 import shlex
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -101,9 +105,10 @@ def obstacle_score(found: list, true: list) -> dict:
 
 def prepare_scene(capture: Path, truth: dict, protocol: str, work: Path, log: Path, args) -> dict:
     """calibrate (+ background, + synth and refine); returns the steps' timings."""
-    roles, scene, steps = truth["protocols"][protocol], work / "scene", {}
-    if (scene / "scene.json").exists():
-        return steps
+    roles, scene, steps, done = truth["protocols"][protocol], work / "scene", {}, work / "prepared.json"
+    if done.exists():  # every step of an earlier run succeeded
+        return json.loads(done.read_text())
+    shutil.rmtree(scene, ignore_errors=True)  # what a failed step of an earlier run left
     cmd = ["calibrate", "--from-pinf", capture / "info.json", "--input", roles["input"], "--ground-truth",
            roles["ground_truth"], *truth["calibrate_args"], "--out", scene]
     if "novel" in roles:
@@ -117,6 +122,7 @@ def prepare_scene(capture: Path, truth: dict, protocol: str, work: Path, log: Pa
     if protocol == "single-view":
         steps["synth"] = timed_command(["synth", scene], log)
         steps["refine"] = timed_command(["refine", scene], log)
+    done.write_text(json.dumps(steps))
     return steps
 
 
@@ -166,6 +172,12 @@ def one(seed: int, protocol: str, args) -> dict:
             "peak_mib": max(s["peak_mib"] for s in steps.values())}
 
 
+def tool_error(log: Path) -> str:
+    """The last ``error:`` line the tool wrote to ``log`` (its one-line refusal), or "" without one."""
+    lines = [ln for ln in log.read_text().splitlines() if ln.startswith("error:")] if log.exists() else []
+    return lines[-1] if lines else ""
+
+
 def fmt(x, spec=".2f"):
     return "-" if x is None else format(x, spec)
 
@@ -188,16 +200,19 @@ def table(results: list) -> str:
 
 
 def means(results: list) -> dict:
-    """Per split and protocol: the mean of each score, and how often the run beats each reference."""
+    """Per split and protocol: the mean of each score over the rows that ran, how often the run beats each
+    reference, and how many rows failed (a failed row beats nothing)."""
     out = {}
     for split in SPLITS:
         for protocol in PROTOCOLS:
-            rs = [r for r in results if r["split"] == split and r["protocol"] == protocol]
+            every = [r for r in results if r["split"] == split and r["protocol"] == protocol]
+            rs = [r for r in every if "error" not in r]
             if not rs:
                 continue
             m = lambda f: float(np.mean([f(r) for r in rs]))  # noqa: E731
             out[f"{split}/{protocol}"] = {
-                "scenes": len(rs), "nvs_psnr": m(lambda r: r["nvs"]["psnr"]), "nvs_ssim": m(lambda r: r["nvs"]["ssim"]),
+                "scenes": len(every), "failed": len(every) - len(rs),
+                "nvs_psnr": m(lambda r: r["nvs"]["psnr"]), "nvs_ssim": m(lambda r: r["nvs"]["ssim"]),
                 "black_psnr": m(lambda r: r["references"]["black"]["psnr"]),
                 "frame0_psnr": m(lambda r: r["references"]["frame0_held"]["psnr"]),
                 "beats_black": sum(r["nvs"]["psnr"] > r["references"]["black"]["psnr"] for r in rs),
@@ -210,7 +225,8 @@ def means(results: list) -> dict:
 
 
 def means_table(summary: dict) -> str:
-    keys = [("scenes", "d"), ("nvs_psnr", ".2f"), ("nvs_ssim", ".3f"), ("black_psnr", ".2f"), ("frame0_psnr", ".2f"),
+    keys = [("scenes", "d"), ("failed", "d"), ("nvs_psnr", ".2f"), ("nvs_ssim", ".3f"), ("black_psnr", ".2f"),
+            ("frame0_psnr", ".2f"),
             ("beats_black", "d"), ("beats_frame0", "d"), ("source_err_radii", ".1f"), ("source_err_box", ".2f"),
             ("direction_err_deg", ".0f"), ("seconds", ".0f"), ("peak_mib", ".0f")]
     lines = []
@@ -248,10 +264,14 @@ def main() -> None:
     for seed in seeds:
         for protocol in args.protocols.split(","):
             tic = time.time()
+            previous = args.work / "results" / f"seed{seed}-{protocol}.json"
+            if args.rescore and previous.exists() and "error" in json.loads(previous.read_text()):
+                continue  # a failed row stays as it was
             try:
                 result = one(seed, protocol, args)
-            except RuntimeError as err:  # a failed step is a row of the table too
-                result = {"seed": seed, "split": split_of(seed), "protocol": protocol, "error": str(err)}
+            except RuntimeError as err:  # a failed step is a row of the table too, with the tool's own message
+                result = {"seed": seed, "split": split_of(seed), "protocol": protocol,
+                          "error": f"{err}: {tool_error(args.work / f'seed{seed}' / protocol / 'log.txt')}"}
             (args.work / "results" / f"seed{seed}-{protocol}.json").write_text(json.dumps(result, indent=1))
             print(f"seed {seed} {protocol}: " + (result.get("error") or
                   f"NVS {result['nvs']['psnr']:.2f} dB (black {result['references']['black']['psnr']:.2f}, frame 0 "
@@ -260,7 +280,7 @@ def main() -> None:
     results = [json.loads(p.read_text()) for p in sorted((args.work / "results").glob("*.json"))]
     ok = [r for r in results if "error" not in r]
     failed = [f"- seed {r['seed']} {r['protocol']}: {r['error']}" for r in results if "error" in r]
-    summary = means(ok)
+    summary = means(results)
     (args.work / "table.json").write_text(json.dumps({"rows": results, "means": summary}, indent=1))
     text = (table(ok) + "\n\n" + ("Failed:\n" + "\n".join(failed) + "\n\n" if failed else "")
             + "Means (development | held-out):\n\n" + means_table(summary))

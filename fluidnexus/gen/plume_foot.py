@@ -145,9 +145,10 @@ def plume_foot(scene: Scene, view_name: str, camera: Camera, footage: np.ndarray
             lo, hi = np.asarray(scene.volume.min), np.asarray(scene.volume.max)
             tol = 1e-6 * float(np.max(hi - lo))
             if np.any(hit < lo - tol) or np.any(hit > hi + tol):
+                box = f"{list(scene.volume.min)}..{list(scene.volume.max)}"
                 raise InputError(scene.root / SCENE_FILE, "floor", f"{where} meets the floor at "
-                                                                   f"{np.round(hit, 4).tolist()}, outside the volume "
-                                                                   f"{list(scene.volume.min)}..{list(scene.volume.max)}")
+                                 f"{np.round(hit, 4).tolist()}, outside the volume {box}: the smoke does not start on "
+                                 "the floor; declare the source or the floor in scene.json")
     hit_depth = float(camera.project(hit[None])[1][0])
     half_width = max(1.0, float(np.sqrt(2.0) * np.std(lateral)))  # a uniform disk's rms, as the hull finder
     radius = half_width * hit_depth / float(camera.K[0, 0])

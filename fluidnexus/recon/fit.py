@@ -1,8 +1,8 @@
 """The per-frame optimisations of FluidNexus Alg. S1.
 
-- :func:`fit_look`: the earliest frame with smoke, before the positions: one colour and one opacity shared by every visual particle
-  (the initial look; on footage over a backdrop the release's constants, tuned to faint smoke on black, can be far
-  off, e.g. dense grey smoke on white).
+- :func:`fit_look`: the earliest frame with smoke, before the positions: one colour and one opacity shared by every
+  visual particle (the initial look; on footage over a backdrop the release's constants, tuned to faint smoke on
+  black, can be far off, e.g. dense grey smoke on white).
 - :func:`fit_positions`: frame 0, visual positions only.
 - :func:`fit_dynamics`: stage 1, the physical positions p_t (Eq. 6): image loss through advection of the visual
   particles by V_t(.|u_t, p_t), plus lambda_sim L_sim and L_incomp (density at p_t, at the differentiable look-ahead
