@@ -26,12 +26,17 @@ the radius ratio, found speed / true inflow speed, the start frame. Obstacles: r
 (found only with plates) against the true ones: how many were found and the centre error of the nearest found body
 for each true one, in the true body's size (radius or half-diagonal).
 
-A step that fails (the tool's exit 2, e.g. a single video whose smoke does not start on the floor) makes a failed
-row with the tool's one-line message; it counts as beating no reference. A scene is prepared again from scratch
+A step that fails (the tool's exit 2) makes a failed row with the tool's one-line message; it counts as beating no
+reference. One refusal is answered as a user would: where synth refuses a single video because the smoke does not
+start on the default floor (the volume's bottom face; the family's sources float anywhere in the box), the table
+declares the floor a user would state, the horizontal plane at the nozzle's height (through the true source's
+centre: one number of the truth), runs synth again and marks the row "floor declared" (the refusal is kept in
+W/seedN/single-view/floor_refused.txt and the row's ``floor_declared``). A scene is prepared again from scratch
 unless every preparation step of an earlier run succeeded (W/seedN/PROTOCOL/prepared.json).
 ``--rescore`` computes the scores again from the runs and eval.json files already in W (steps not re-run, their
-timings kept; failed rows stay as they are). Results go to W/results/seedN-PROTOCOL.json (kept, so the development and held-out halves can be
-run separately into the same W), W/table.json and W/table.md (every row, then the two halves' means side by side).
+timings kept; failed rows stay as they are). Results go to W/results/seedN-PROTOCOL.json (kept, so the development
+and held-out halves can be run separately into the same W), W/table.json and W/table.md (every row, then the two
+halves' means side by side).
 Held-out seeds are refused unless ``--held-out`` is given (docs/scene-family.md: they are run only to fill the table).
 """
 from __future__ import annotations
@@ -57,6 +62,7 @@ from benchmarks.scenes.splits import SPLITS, HeldOutError  # noqa: E402
 # the demo's reduced recon settings (cli/demo.py): a scene in minutes on a 2-core CPU
 FAST_RECON = "--init-iters 150 --dynamics-iters 12 --appearance-iters 8 --stabilization-steps 10 --static-iters 150"
 PROTOCOLS = ("four-view", "single-view")
+REFUSED = "floor_refused.txt"  # synth's refusal with the default floor, where the table then declared one
 
 
 def references(scene: Path, frames: tuple, size: tuple, channels: int) -> dict:
@@ -109,6 +115,7 @@ def prepare_scene(capture: Path, truth: dict, protocol: str, work: Path, log: Pa
     if done.exists():  # every step of an earlier run succeeded
         return json.loads(done.read_text())
     shutil.rmtree(scene, ignore_errors=True)  # what a failed step of an earlier run left
+    (work / REFUSED).unlink(missing_ok=True)
     cmd = ["calibrate", "--from-pinf", capture / "info.json", "--input", roles["input"], "--ground-truth",
            roles["ground_truth"], *truth["calibrate_args"], "--out", scene]
     if "novel" in roles:
@@ -120,7 +127,19 @@ def prepare_scene(capture: Path, truth: dict, protocol: str, work: Path, log: Pa
             plates = [t for n in roles["input"].split(",") for t in ("--plate", f"{n}={capture / 'plates' / n}.png")]
         steps["background"] = timed_command(["background", scene, *plates], log)
     if protocol == "single-view":
-        steps["synth"] = timed_command(["synth", scene], log)
+        try:
+            steps["synth"] = timed_command(["synth", scene], log)
+        except RuntimeError:
+            refusal = tool_error(log)
+            if "floor" not in refusal:
+                raise
+            # the smoke does not start on the default floor (the volume's bottom): the user states the nozzle's
+            # height, a floor through the true source (scene.json ``floor``), and synth finds the rest again
+            spec = json.loads((scene / "scene.json").read_text())
+            spec["floor"] = {"point": truth["source"]["center"], "normal": [0.0, 1.0, 0.0]}
+            (scene / "scene.json").write_text(json.dumps(spec, indent=1))
+            (work / REFUSED).write_text(refusal + "\n")
+            steps["synth"] = timed_command(["synth", scene], log)
         steps["refine"] = timed_command(["refine", scene], log)
     done.write_text(json.dumps(steps))
     return steps
@@ -166,6 +185,7 @@ def one(seed: int, protocol: str, args) -> dict:
                                      channels),
             "source": source_score(info["source"], truth["source"], truth["length_m"]),
             "source_finder": info.get("source_finder"),
+            "floor_declared": (pwork / REFUSED).read_text().strip() if (pwork / REFUSED).exists() else None,
             "obstacles": obstacle_score(info.get("found_obstacles", []), truth["obstacles"]),
             "steps": steps,
             "seconds": round(sum(s["seconds"] for s in steps.values()), 1),
@@ -190,7 +210,8 @@ def table(results: list) -> str:
         s, ref, src, ob = r["scene"], r["references"], r["source"], r["obstacles"]
         scene = (f"{s['source']} {s['window']}, {s['backdrop']}/{s['smoke']}, {s['layout']} {s['elevation']}"
                  f"{' moving' if s['moving'] else ''}, {s['unit']} {s['up']}-up, {s['length_m']:.2f} m")
-        rows.append(f"| {r['seed']} | {r['split']} | {r['protocol']} | {scene} | {fmt(r['nvs']['psnr'])} / "
+        protocol = r["protocol"] + (" (floor declared)" if r.get("floor_declared") else "")
+        rows.append(f"| {r['seed']} | {r['split']} | {protocol} | {scene} | {fmt(r['nvs']['psnr'])} / "
                     f"{fmt(r['nvs']['ssim'], '.3f')} | {fmt(ref['black']['psnr'])} / {fmt(ref['black']['ssim'], '.3f')}"
                     f" | {fmt(ref['frame0_held']['psnr'])} / {fmt(ref['frame0_held']['ssim'], '.3f')} | "
                     f"{fmt(src['center_error_radii'], '.1f')} / {fmt(src['center_error_box'], '.2f')} | "
@@ -212,6 +233,7 @@ def means(results: list) -> dict:
             m = lambda f: float(np.mean([f(r) for r in rs]))  # noqa: E731
             out[f"{split}/{protocol}"] = {
                 "scenes": len(every), "failed": len(every) - len(rs),
+                "floor_declared": sum(bool(r.get("floor_declared")) for r in rs),
                 "nvs_psnr": m(lambda r: r["nvs"]["psnr"]), "nvs_ssim": m(lambda r: r["nvs"]["ssim"]),
                 "black_psnr": m(lambda r: r["references"]["black"]["psnr"]),
                 "frame0_psnr": m(lambda r: r["references"]["frame0_held"]["psnr"]),
@@ -225,8 +247,8 @@ def means(results: list) -> dict:
 
 
 def means_table(summary: dict) -> str:
-    keys = [("scenes", "d"), ("failed", "d"), ("nvs_psnr", ".2f"), ("nvs_ssim", ".3f"), ("black_psnr", ".2f"),
-            ("frame0_psnr", ".2f"),
+    keys = [("scenes", "d"), ("failed", "d"), ("floor_declared", "d"), ("nvs_psnr", ".2f"), ("nvs_ssim", ".3f"),
+            ("black_psnr", ".2f"), ("frame0_psnr", ".2f"),
             ("beats_black", "d"), ("beats_frame0", "d"), ("source_err_radii", ".1f"), ("source_err_box", ".2f"),
             ("direction_err_deg", ".0f"), ("seconds", ".0f"), ("peak_mib", ".0f")]
     lines = []
