@@ -161,14 +161,15 @@ def test_diagnose_pbf_gas_control_keeps_paper_gas(template, tmp_path, ti_engine)
 def test_diagnose_finds_entrainment_in_the_paper_gas(template, tmp_path, ti_engine):
     """The paper's PBF gas on diagnose's own lattice (0.02 m) with a known entrainment coefficient 0.12
     (pbf_plume.py: jittered source and inflow, 6 solver iterations): ``entrainment`` named, on the paper's gas, the
-    simulated width-against-height slope within 25 % of the observed one (measured +9 %), the coefficient within
-    45 % (measured 0.167, +39 %; the buoyancy fitted with it is -0.11 against the generator's -0.04: over 1.6 s of
-    footage a stronger buoyancy and a stronger entrainment trade off; 0.170 over 90 frames, 0.162 with the
-    generator at diagnose's 4 iterations; BENCHMARKS.md "Entrainment")."""
+    simulated width-against-height slope within 25 % of the observed one (measured +12 %), the coefficient within
+    30 % (measured 0.124, +4 %, the buoyancy fitted with it -0.065 against the generator's -0.04; 2026-11-26). The
+    footage pins the coefficient no closer: fitted with the buoyancy, drag and source rate refitted at fixed
+    coefficients, the training error is flat within its noise over 0.09-0.135 here and over 0.08-0.20 on a plume
+    of 0.16, whose coefficient comes out 0.114 (-29 %; BENCHMARKS.md "Entrainment")."""
     report = diagnose_density(template, tmp_path, simulate_pbf(FRAMES, entrainment=0.12, spacing=0.02))
     assert report["structure"]["name"] == "paper_gas", report["structure"]
     assert report["finding"]["effect"] == "entrainment", report["candidates"]
-    assert abs(report["finding"]["params"]["alpha"] - 0.12) < 0.45 * 0.12, report["finding"]
+    assert abs(report["finding"]["params"]["alpha"] - 0.12) < 0.30 * 0.12, report["finding"]
     slope = report["width_slope"]
     assert abs(slope["chosen"] - slope["observed"]) < 0.25 * slope["observed"], slope
 
