@@ -294,7 +294,7 @@ def main() -> None:
             except RuntimeError as err:  # a failed step is a row of the table too, with the tool's own message
                 result = {"seed": seed, "split": split_of(seed), "protocol": protocol,
                           "error": f"{err}: {tool_error(args.work / f'seed{seed}' / protocol / 'log.txt')}"}
-            (args.work / "results" / f"seed{seed}-{protocol}.json").write_text(json.dumps(result, indent=1))
+            previous.write_text(json.dumps(result, indent=1))
             print(f"seed {seed} {protocol}: " + (result.get("error") or
                   f"NVS {result['nvs']['psnr']:.2f} dB (black {result['references']['black']['psnr']:.2f}, frame 0 "
                   f"held {result['references']['frame0_held']['psnr']:.2f}); source off by "

@@ -124,7 +124,7 @@ def reconstruct(scene: Scene, out: str | Path, setup: RunSetup, resume: bool = F
     found, seeds = locate_smoke(scene, obs, cfg, obstacle)
     source = found.source
     log.info("%s", memory.check(recon_estimate(scene, setup, frames, len(seeds)), limit).describe())
-    setup = replace(setup, config=_initial_look(scene, cfg, obs, found, obstacle, out, resume))
+    setup = replace(setup, config=_initial_look(scene, cfg, obs, found, out, resume))
     first = _prepare_folder(out, scene, setup, frames, resume)
     if first >= frames[1] and (out / "summary.json").is_file():  # a finished run resumed: nothing to do
         log.info("every frame of %d:%d is already in %s", *frames, out)
@@ -162,12 +162,12 @@ def _physical_support(scene: Scene, cfg: ReconConfig) -> ReconConfig:
     return replace(cfg, physical_support="on" if over_backdrop(scene) else "off")
 
 
-def _initial_look(scene: Scene, cfg: ReconConfig, obs, found: FoundSource, obstacle, out: Path,
-                  resume: bool) -> ReconConfig:
+def _initial_look(scene: Scene, cfg: ReconConfig, obs, found: FoundSource, out: Path, resume: bool) -> ReconConfig:
     """``cfg`` with the initial look (``ReconConfig.initial_look``): fitted to the earliest frame of the run with
     smoke, at that frame's hull (a look fitted to a frame without smoke would be invisible: a burst that starts
     later), or read back from the run's config.json when resuming (the fit gives the same values; reading them
-    saves its time). The constants stay where no frame shows smoke."""
+    saves its time). The constants stay where no frame shows smoke. The hull holds no point inside an obstacle
+    (``find_source``)."""
     fitted = cfg.initial_look == "fit" or (cfg.initial_look == "auto" and over_backdrop(scene))
     if not fitted:
         return cfg
@@ -179,8 +179,7 @@ def _initial_look(scene: Scene, cfg: ReconConfig, obs, found: FoundSource, obsta
         log.info("initial look: no frame shows smoke, the constants %.4g, %.4g are kept", cfg.color0, cfg.opacity0)
         return cfg
     dtype = torch_dtype()
-    points = outside(found.smoke_hull, obstacle, f"the hull of frame {t}")
-    color, opacity = fit_look(torch.as_tensor(points, dtype=dtype), _views(obs, t, dtype), cfg,
+    color, opacity = fit_look(torch.as_tensor(found.smoke_hull, dtype=dtype), _views(obs, t, dtype), cfg,
                               frame_generator(cfg.seed, t))
     log.info("initial look fitted to frame %d: colour %.4g, opacity %.4g (from %.4g, %.4g)", t, color,
              opacity, cfg.color0, cfg.opacity0)

@@ -134,10 +134,10 @@ def test_initial_look_is_fitted_where_the_smoke_first_shows(tmp_path, ti_engine)
     at_zero = fit_look(torch.as_tensor(found.smoke_hull), Views(cameras, torch.as_tensor(video[:, 0]), ()), cfg,
                        torch.Generator().manual_seed(0))
     assert at_zero[1] < 0.02  # the premise: fitted to frame 0, the look is invisible
-    look = _initial_look(scene, cfg, obs, found, None, tmp_path, resume=False)
+    look = _initial_look(scene, cfg, obs, found, tmp_path, resume=False)
     assert look.opacity0 > 0.05 and look.color0 > 0.3, (look.color0, look.opacity0)
     # no smoke in any frame: the constants are kept
     empty = find_source(scene, replace(obs, images=np.zeros_like(video)), 0.02, 0.02, Source((0.15, -0.3, 0.0), 0.02))
     assert empty.smoke_frame is None
-    kept = _initial_look(scene, cfg, replace(obs, images=np.zeros_like(video)), empty, None, tmp_path, resume=False)
+    kept = _initial_look(scene, cfg, replace(obs, images=np.zeros_like(video)), empty, tmp_path, resume=False)
     assert (kept.color0, kept.opacity0) == (cfg.color0, cfg.opacity0)
