@@ -107,15 +107,24 @@ def clean_frames(frames: np.ndarray, noise: float | None = None) -> PlateEstimat
 
 def color_plate(video: np.ndarray, quiet: np.ndarray, temporal: PlateEstimate, color: np.ndarray,
                 noise: float) -> PlateEstimate:
-    """A known backdrop colour where the pixel shows it at quiet moments; the temporal mode where it never does
-    and is a static object: confidently something else, or an unsure pixel inside the convex hull of such a
-    region (smoke that often passes in front of an object leaves holes in it; those take the object's values
-    from its confident pixels around them); the colour, with the temporal confidence, elsewhere."""
+    """A known backdrop colour where the pixel shows it at quiet moments or in the first frame; the temporal
+    mode where it never does and is a static object: confidently something else, or an unsure pixel inside the
+    convex hull of such a region (smoke that often passes in front of an object leaves holes in it; those take
+    the object's values from its confident pixels around them); the colour, with the temporal confidence,
+    elsewhere.
+
+    The first frame counts on its own: a static object stands in every frame, so a pixel that shows the
+    backdrop's colour in frame 0, and most of its 8 neighbours with it, has the backdrop behind whatever covers it
+    later. Steady smoke that arrives in frame 1 or 2 (a plume from frame 0) is quiet and confident for the rest
+    of the video, and without this rule it became a static object in the plate."""
     tol = _difference(noise)
     shown = np.zeros(video.shape[1:3], np.int32)
     for t in range(len(video)):
         shown += quiet[t] & (np.abs(video[t] - color).max(axis=2) < tol)
-    seen_color = shown >= max(2, round(0.02 * len(video)))
+    first = (np.abs(video[0] - color).max(axis=2) < tol).astype(np.float32)
+    around = cv2.boxFilter(first, -1, (3, 3), normalize=False, borderType=cv2.BORDER_REPLICATE)
+    first = (first > 0) & (around >= 5)  # with most of its 3 x 3 window: not a lone pixel, but an object's rim too
+    seen_color = (shown >= max(2, round(0.02 * len(video)))) | first
     core = ~seen_color & (temporal.confidence >= CONFIDENT)
     obj = core | (~seen_color & hulls(core))
     inside = fill_unseen(temporal.plate, core, video) if core.any() else temporal.plate  # unsure: from the core

@@ -78,3 +78,21 @@ def test_known_color_keeps_an_object_whole_under_smoke_that_never_leaves_part_of
     assert est.source == "color"
     assert (np.abs(est.plate - back).max(axis=2)[disk] < 0.15).mean() > 0.97
     assert est.confidence[disk & (xx == 32)].max() < 0.5  # ... flagged unsure where never seen
+
+
+def test_known_color_steady_smoke_from_the_first_frames_is_not_an_object():
+    """A steady column of dark smoke on a white backdrop that reaches its pixels in frame 1 and stays (a plume
+    from frame 0): quiet and confident from then on, yet the backdrop's colour shows there in frame 0, so the
+    plate is the colour, not the smoke. A static object beside it, in every frame, is kept."""
+    white = np.ones(3, np.float32)
+    yy, xx = np.mgrid[0:48, 0:64]
+    back = np.broadcast_to(white, (48, 64, 3)).copy()
+    back[5:15, 45:60] = (0.3, 0.3, 0.35)
+    column = (np.abs(xx - 24) < 5) & (yy > 8)
+    alpha = np.zeros((40, 48, 64), np.float32)
+    alpha[1:] = np.where(column, 0.6, 0.0)
+    alpha[1:] += smoke_alpha(3, frames=39) * 0.3  # some moving smoke elsewhere
+    est = estimate_plate(composite(back, np.clip(alpha, 0, 1), "dark"), white)
+    assert est.source == "color"
+    assert np.abs(est.plate - back).max(axis=2)[column].max() < 0.03
+    assert np.abs(est.plate - back).max(axis=2)[5:15, 45:60].max() < 0.03
