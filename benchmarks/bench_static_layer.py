@@ -87,7 +87,7 @@ def main() -> None:
     cfg = StaticConfig(iterations=args.iterations, seed=args.seed, **overrides)
     tic = time.perf_counter()
     backdrop = None if args.plates_median else scene.backdrop_color
-    layer = fit_static(cameras, plates, confidences, scene.volume.min, scene.volume.max, cfg, backdrop)
+    layer = fit_static(cameras, plates, confidences, scene.volume.min, scene.volume.max, cfg, backdrop, scene.ground())
     fit_s = time.perf_counter() - tic
     sure = np.concatenate([p[c >= 0.5] for p, c in zip(plates, confidences)])
     flat_color = np.median(sure, axis=0)

@@ -144,7 +144,8 @@ def render_static(layer: StaticLayer, camera: Camera, return_depth: bool = False
 
 # ---- initialisation ------------------------------------------------------------------------------------------
 def _ray_seeds(index: int, cameras, plates, confidences, depth: DepthMap, fill: np.ndarray, lo: np.ndarray,
-               hi: np.ndarray, cfg: StaticConfig, generator: torch.Generator) -> tuple[np.ndarray, np.ndarray]:
+               hi: np.ndarray, cfg: StaticConfig, generator: torch.Generator, floor=None) -> tuple[np.ndarray,
+                                                                                               np.ndarray]:
     """One seed per ray of a jittered grid through view ``index``'s image with its plate's colour (``fill`` where
     the plate is unsure, confidence under 0.5), at the ray's stereo depth where another view confirms it. A ray
     without a confirmed depth seeds on the shell behind everything when the view shows a textured backdrop
@@ -164,13 +165,30 @@ def _ray_seeds(index: int, cameras, plates, confidences, depth: DepthMap, fill: 
     z = depth.at(uv, w, h)
     pix = np.clip(uv.astype(int), 0, [w - 1, h - 1])
     confirmed = np.isfinite(z)
-    z = np.where(confirmed, z, float(np.linalg.norm(camera.center - center)) + shell_radius(cameras, lo, hi, cfg))
+    shell = np.full(len(uv), float(np.linalg.norm(camera.center - center)) + shell_radius(cameras, lo, hi, cfg))
+    alone = len(cameras) == 1
+    if alone and floor is not None:
+        shell = np.minimum(shell, floor_depth(camera, uv, floor))
+    z = np.where(confirmed, z, shell)
     points = camera.unproject(uv, z)
     colors = np.array(plate[pix[:, 1], pix[:, 0]], np.float64).reshape(len(uv), -1)
     colors[confidence[pix[:, 1], pix[:, 0]] < 0.5] = fill
     # a plain colour has no depth (every depth agrees): what shows the background colour is left to it
-    content = (np.abs(colors - fill).max(axis=1) > cfg.plain) & (confirmed | _sees_backdrop(depth, lo, hi, cfg))
+    content = (np.abs(colors - fill).max(axis=1) > cfg.plain) & (confirmed | alone | _sees_backdrop(depth, lo, hi,
+                                                                                                     cfg))
     return points[content], colors[content]
+
+
+def floor_depth(camera, uv: np.ndarray, floor) -> np.ndarray:
+    """[N] the camera-space depth at which each pixel's ray meets ``floor`` (``scene.Floor``), inf where it does
+    not in front of the camera."""
+    direction = camera.unproject(uv, np.ones(len(uv))) - camera.center  # the ray at depth 1
+    normal = np.asarray(floor.normal, np.float64)
+    along = direction @ normal
+    height = float((np.asarray(floor.point, np.float64) - camera.center) @ normal)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = height / along
+    return np.where((along < 0) & (t > 0), t, np.inf)
 
 
 def shell_radius(cameras, lo: np.ndarray, hi: np.ndarray, cfg: StaticConfig) -> float:
@@ -198,7 +216,7 @@ def _sees_backdrop(depth: DepthMap, lo: np.ndarray, hi: np.ndarray, cfg: StaticC
     return int((np.linalg.norm(points - cam.center, axis=1) > reach).sum()) >= cfg.backdrop * cam.width * cam.height
 
 
-def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backdrop=None) -> StaticLayer:
+def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backdrop=None, floor=None) -> StaticLayer:
     """The seeds of a fit (module docstring), deterministic in ``cfg.seed``; plate pixels with confidence under
     0.5 are not read. The background colour is ``backdrop`` (RGB) when given, else the median colour of the sure
     pixels of every plate."""
@@ -215,7 +233,8 @@ def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backd
     points, colors = [nodes], [node_colors]
     spacing = [np.full(len(nodes), node_spacing)]
     for index, camera in enumerate(cameras):
-        p, c = _ray_seeds(index, cameras, plates, confidences, depths[index], background, lo, hi, cfg, generator)
+        p, c = _ray_seeds(index, cameras, plates, confidences, depths[index], background, lo, hi, cfg, generator,
+                          floor)
         points.append(p)
         colors.append(c)
         # each seed as wide as its ray's pixel footprint at its depth
@@ -340,7 +359,8 @@ def _check_inputs(cameras, plates, confidences) -> None:
                                                   f"{camera.width}x{camera.height}")
 
 
-def fit_static(cameras, plates, confidences, lo, hi, cfg: StaticConfig = StaticConfig(), backdrop=None) -> StaticLayer:
+def fit_static(cameras, plates, confidences, lo, hi, cfg: StaticConfig = StaticConfig(), backdrop=None,
+               floor=None) -> StaticLayer:
     """Fit a static layer to clean plates.
 
     Args:
@@ -360,7 +380,7 @@ def fit_static(cameras, plates, confidences, lo, hi, cfg: StaticConfig = StaticC
     dtype = torch_dtype()
     targets = [torch.as_tensor(np.asarray(p), dtype=dtype) for p in plates]
     weights = [torch.as_tensor(np.asarray(c), dtype=dtype)[..., None] for c in confidences]
-    params = _Params(initial_layer(cameras, plates, confidences, lo, hi, cfg, backdrop), dtype)
+    params = _Params(initial_layer(cameras, plates, confidences, lo, hi, cfg, backdrop, floor), dtype)
     opt = _optimizer(params, cfg, size)
     n = params.tensors["means"].shape[0]
     grad_sum, seen = np.zeros(n), np.zeros(n)

@@ -93,7 +93,8 @@ def fit_scenery(scene: Scene, declared: Scenery, cameras: dict, channels: int, i
         log.info("static layer: %d Gaussians read from %s", len(layer), saved)
     else:
         layer = fit_static(cams, plates, confidences, scene.volume.min, scene.volume.max,
-                           StaticConfig(iterations=iterations, seed=seed), backdrop=scene.backdrop_color)
+                           StaticConfig(iterations=iterations, seed=seed), backdrop=scene.backdrop_color,
+                           floor=scene.ground())
         log.info("static layer: %d Gaussians fitted to %d plates (loss %.4g)", len(layer), len(cams),
                  layer.info["loss"])
     found = find_obstacles(layer, cams, scene.volume.min, scene.volume.max, confidences=confidences, smoke=smoke)

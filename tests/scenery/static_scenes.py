@@ -30,8 +30,19 @@ def texture(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return np.stack([r, g, b], axis=1).clip(0, 1)
 
 
-def render(cam: Camera) -> np.ndarray:
-    """[H, W, 3] image of the scene seen by ``cam`` (one ray per pixel centre)."""
+def floor_mask(cam: Camera) -> np.ndarray:
+    """[H, W] bool: the pixels whose ray meets the floor (y = 0) before the backdrop plane."""
+    rows, cols = np.mgrid[0:cam.height, 0:cam.width]
+    d = cam.unproject(np.stack([cols.ravel() + 0.5, rows.ravel() + 0.5], axis=1), 1.0) - cam.center
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_floor = (LO[1] - cam.center[1]) / d[:, 1]
+        t_plane = (BACKDROP_Z - cam.center[2]) / d[:, 2]
+    return ((t_floor > 0) & ((t_floor < t_plane) | (t_plane <= 0))).reshape(cam.height, cam.width)
+
+
+def render(cam: Camera, floor: bool = False) -> np.ndarray:
+    """[H, W, 3] image of the scene seen by ``cam`` (one ray per pixel centre); with ``floor``, a textured floor
+    at the volume's bottom face (y = 0) in front of the backdrop plane."""
     rows, cols = np.mgrid[0:cam.height, 0:cam.width]
     uv = np.stack([cols.ravel() + 0.5, rows.ravel() + 0.5], axis=1)
     origin = cam.center
@@ -42,6 +53,10 @@ def render(cam: Camera) -> np.ndarray:
     hit = t_plane > 0
     p = origin + t_plane[:, None] * d
     image[hit] = texture(p[hit, 0], p[hit, 1])
+    if floor:
+        on = floor_mask(cam).ravel()
+        q = origin + ((LO[1] - origin[1]) / d[on, 1])[:, None] * d[on]
+        image[on] = texture(0.3 * q[:, 0] + 2.0, 0.3 * q[:, 2] + 5.0)  # coarser than the wall
     oc = origin - BALL_CENTER
     b = d @ oc
     disc = b ** 2 - (oc @ oc - BALL_RADIUS ** 2)

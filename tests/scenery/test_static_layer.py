@@ -3,12 +3,15 @@ volume): a fifth, held-out camera gets its background, and the ball is found as 
 import numpy as np
 import pytest
 
-from .static_scenes import BALL_CENTER, BALL_RADIUS, HI, LO, camera, render
+from fluidnexus.camera import Camera
+
+from .static_scenes import BALL_CENTER, BALL_RADIUS, HI, LO, TARGET, camera, floor_mask, render
 
 TRAIN_AZIMUTHS = (-40, -15, 15, 40)
 HELD_OUT_AZIMUTH = 0
 HELD_OUT_PSNR_DB = 32.0  # measured 36.3 dB (float64, seed 3; docs/static-layer.md); the mean colour: 14.4 dB
 ITERATIONS = 400
+FLOOR_GAIN_ONE_VIEW_DB = 4.0  # one view, the floor seen from 20 deg beside it: measured 22.1 dB, the flat colour 14.6
 
 
 @pytest.fixture(scope="module")
@@ -171,17 +174,33 @@ def test_confidence_weights_the_loss(ti_engine):
     assert not np.array_equal(a.colors, c.colors)
 
 
-def test_one_view_places_nothing(ti_engine):
-    """A single view confirms no depth and carves no hull: the layer is its background colour alone (a single video
-    gets no static Gaussians; its own plate is its backdrop) and no obstacle is found."""
+def test_one_view_seeds_on_the_floor_and_behind(ti_engine):
+    """A single view confirms no depth and carves no hull: its rays seed where they meet the scene's floor, and
+    beyond the volume otherwise, so a camera beside it sees the floor and the wall in their places (better than
+    the flat colour that a layer placing nothing shows) and no obstacle is found. (Without the floor the same rays
+    seed on the shell: 14.5 dB on the floor's pixels.)"""
+    from fluidnexus.metrics import psnr
+    from fluidnexus.scene import Floor
     from fluidnexus.scenery.found_obstacles import find_obstacles
-    from fluidnexus.scenery.static_layer import StaticConfig, fit_static, render_static
+    from fluidnexus.scenery.static_layer import StaticConfig, fit_static, initial_layer, render_static
 
-    cam = camera(0, size=24)
-    plate = render(cam)
-    layer = fit_static([cam], [plate], [np.ones(plate.shape[:2], np.float32)], LO, HI, StaticConfig(iterations=8))
-    assert len(layer) == 0 and layer.background.shape == (3,)
-    assert render_static(layer, cam)[0].shape == (24, 24, 3)
+    def above(azimuth_deg):  # 30 degrees above the target: the floor fills the lower part of the view
+        a = np.radians(azimuth_deg)
+        eye = TARGET + 2.6 * np.array([np.sin(a) * 0.87, 0.5, np.cos(a) * 0.87])
+        return Camera.look_at(32, 32, 35.0, eye, TARGET)
+
+    cam, held = above(0), above(20)
+    plate, truth = render(cam, floor=True), render(held, floor=True)
+    sure = [np.ones(plate.shape[:2], np.float32)]
+    floor = Floor((0.0, LO[1], 0.0))
+    seeds = initial_layer([cam], [plate], sure, LO, HI, StaticConfig(), floor=floor)
+    on_floor = cam.project(seeds.means.astype(np.float64))[0][:, 1] > 0.75 * cam.height  # the view's bottom quarter
+    assert on_floor.sum() > 20 and np.abs(seeds.means[on_floor, 1] - LO[1]).max() < 1e-4
+    layer = fit_static([cam], [plate], sure, LO, HI, StaticConfig(iterations=150), floor=floor)
+    on = floor_mask(held)
+    image, flat = render_static(layer, held)[0].numpy()[on][None], np.broadcast_to(layer.background, truth.shape)
+    assert psnr(image, truth[on][None]) >= psnr(flat[on][None], truth[on][None]) + FLOOR_GAIN_ONE_VIEW_DB
+    assert psnr(render_static(layer, cam)[0].numpy(), plate) >= 28.0
     assert find_obstacles(layer, [cam], LO, HI) == []
 
 
