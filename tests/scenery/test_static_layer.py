@@ -204,6 +204,18 @@ def test_one_view_seeds_on_the_floor_and_behind(ti_engine):
     assert find_obstacles(layer, [cam], LO, HI) == []
 
 
+def test_one_view_over_a_plain_backdrop_places_nothing(ti_engine):
+    """Over a plain backdrop what differs from it in a single view is an object or a plate's error, which one view
+    cannot place: the layer is the background colour alone."""
+    from fluidnexus.scenery.static_layer import StaticConfig, fit_static
+
+    cam = camera(0, size=24)
+    plate = np.where(_ball_mask(cam)[..., None], render(cam), np.float32(1.0)).astype(np.float32)
+    layer = fit_static([cam], [plate], [np.ones(plate.shape[:2], np.float32)], LO, HI, StaticConfig(iterations=8),
+                       backdrop=(1.0, 1.0, 1.0))
+    assert len(layer) == 0 and np.allclose(layer.background, 1.0, atol=0.05)
+
+
 def test_a_known_backdrop_colour_starts_the_background(ti_engine):
     """scene.json's backdrop_color (RGB) is the background colour the fit starts from, as one gray value for
     one-channel plates; without it the plates' median colour is."""
