@@ -35,6 +35,7 @@ CHANGED_FRACTION = 0.002  # a frame with this share of pixels changed from frame
 MAX_DISAGREEMENT = 0.02  # clean frames may disagree with the seen backdrop at this share of its pixels
 MIN_CLEAN_FRAMES = 2  # fewer leading still frames are no evidence of an empty backdrop
 MAX_MOVING = 0.01  # clean frames (but the last, which sees the smoke arrive) are still at all but this share
+CLEAR_RING = 0.99  # an object is clear in frame 0 when frame 0 shows the backdrop's colour on this share around it
 
 
 @dataclass(frozen=True)
@@ -116,23 +117,47 @@ def color_plate(video: np.ndarray, quiet: np.ndarray, temporal: PlateEstimate, c
     The first frame counts on its own: a static object stands in every frame, so a pixel that shows the
     backdrop's colour in frame 0, and most of its 8 neighbours with it, has the backdrop behind whatever covers it
     later. Steady smoke that arrives in frame 1 or 2 (a plume from frame 0) is quiet and confident for the rest
-    of the video, and without this rule it became a static object in the plate."""
+    of the video, and without this rule it became a static object in the plate. For the same reason an object
+    that frame 0 shows clear of smoke (:func:`clear_in_first_frame`) takes frame 0's value where the temporal mode
+    differs from it (smoke that covers the object in most frames)."""
     tol = _difference(noise)
     shown = np.zeros(video.shape[1:3], np.int32)
     for t in range(len(video)):
         shown += quiet[t] & (np.abs(video[t] - color).max(axis=2) < tol)
-    first = (np.abs(video[0] - color).max(axis=2) < tol).astype(np.float32)
-    around = cv2.boxFilter(first, -1, (3, 3), normalize=False, borderType=cv2.BORDER_REPLICATE)
-    first = (first > 0) & (around >= 5)  # with most of its 3 x 3 window: not a lone pixel, but an object's rim too
+    color_first = np.abs(video[0] - color).max(axis=2) < tol
+    around = cv2.boxFilter(color_first.astype(np.float32), -1, (3, 3), normalize=False,
+                           borderType=cv2.BORDER_REPLICATE)
+    first = color_first & (around >= 5)  # with most of its 3 x 3 window: not a lone pixel, but an object's rim too
     seen_color = (shown >= max(2, round(0.02 * len(video)))) | first
     core = ~seen_color & (temporal.confidence >= CONFIDENT)
     obj = core | (~seen_color & hulls(core))
     inside = fill_unseen(temporal.plate, core, video) if core.any() else temporal.plate  # unsure: from the core
     plate = np.where(core[..., None], temporal.plate, np.where(obj[..., None], inside, color[None, None, :]))
-    plate = plate.astype(np.float32)
-    conf = np.where(seen_color, 1.0, temporal.confidence).astype(np.float32)
-    detail = {"color": [round(float(c), 6) for c in color], "object_fraction": round(float(obj.mean()), 4)}
+    # where frame 0 agrees with the temporal mode, the mode (a mean over many frames) is the quieter value
+    clear = clear_in_first_frame(obj, color_first) & (np.abs(video[0] - plate).max(axis=2) >= tol)
+    plate = np.where(clear[..., None], video[0], plate).astype(np.float32)
+    conf = np.where(seen_color | clear, 1.0, temporal.confidence).astype(np.float32)
+    detail = {"color": [round(float(c), 6) for c in color], "object_fraction": round(float(obj.mean()), 4),
+              "objects_from_first_frame": round(float(clear.mean()), 4)}
     return PlateEstimate(plate, conf, "color", detail)
+
+
+def clear_in_first_frame(obj: np.ndarray, color_first: np.ndarray) -> np.ndarray:
+    """[H, W] bool: the static objects (connected parts of ``obj``) that frame 0 shows clear of smoke, because
+    frame 0 shows the backdrop's colour (``color_first``) on at least ``CLEAR_RING`` of a ring two to three pixels
+    out from them (the pixel next to an object is its rim, blurred by the codec). Smoke that covers an object in
+    most frames (a jet blown at it) would otherwise give the object the smoke's colour in the plate; in frame 0
+    nothing is near it yet. Smoke over the object in frame 0 reaches past it, into the ring."""
+    count, labels = cv2.connectedComponents(obj.astype(np.uint8), connectivity=8)
+    out = np.zeros(obj.shape, bool)
+    near = cv2.dilate(obj.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))
+    for k in range(1, count):
+        part = labels == k
+        ring = cv2.dilate(part.astype(np.uint8), kernel).astype(bool) & ~near
+        if ring.any() and color_first[ring].mean() >= CLEAR_RING:
+            out |= part
+    return out
 
 
 def temporal_mode(video: np.ndarray, quiet: np.ndarray, noise: float) -> PlateEstimate:

@@ -96,3 +96,22 @@ def test_known_color_steady_smoke_from_the_first_frames_is_not_an_object():
     assert est.source == "color"
     assert np.abs(est.plate - back).max(axis=2)[column].max() < 0.03
     assert np.abs(est.plate - back).max(axis=2)[5:15, 45:60].max() < 0.03
+
+
+def test_known_color_object_covered_by_smoke_most_of_the_time_keeps_its_own_colour():
+    """A jet blown at a green box on a white backdrop covers the box from frame 1 to the end, steadily: the box's
+    temporal mode is the smoke over it. Frame 0 shows the backdrop all around the box (nothing near it yet), so the
+    plate holds the box as frame 0 shows it."""
+    white = np.ones(3, np.float32)
+    yy, xx = np.mgrid[0:48, 0:64]
+    back = np.broadcast_to(white, (48, 64, 3)).copy()
+    box = (np.abs(xx - 32) < 6) & (np.abs(yy - 24) < 6)
+    back[box] = (0.2, 0.6, 0.25)
+    cloud = (np.abs(xx - 30) < 12) & (np.abs(yy - 24) < 10)  # larger than the box, over it in frames 1-39
+    alpha = np.zeros((40, 48, 64), np.float32)
+    alpha[1:] = np.where(cloud, 0.5, 0.0)
+    alpha[1:] += smoke_alpha(3, frames=39) * 0.3  # some moving smoke elsewhere
+    est = estimate_plate(composite(back, np.clip(alpha, 0, 1), "dark"), white)
+    assert est.source == "color"
+    assert np.abs(est.plate - back).max(axis=2)[box].max() < 0.03
+    assert np.abs(est.plate - back).max(axis=2)[cloud & ~box].max() < 0.03
