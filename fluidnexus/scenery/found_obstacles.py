@@ -165,7 +165,13 @@ def find_obstacles(layer: StaticLayer, cameras, lo, hi, cfg: FinderConfig = Find
     Args:
         confidences: per camera, its plate's confidence [H, W] at the camera's size (None: every pixel sure).
         smoke: per frame of footage, per camera, [H, W] bool: the pixels that show smoke (none: no footage).
+
+    A single view finds nothing: what lies behind its surfaces is never carved, so every surface it shows would
+    become a body reaching to the volume's far side (a single video's floor seeds made a "ball" 0.36 m across).
+    A single video's obstacles are declared (scene.json ``obstacles``).
     """
+    if len(cameras) < 2:
+        return []
     from scipy import ndimage
 
     lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)

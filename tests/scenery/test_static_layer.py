@@ -58,6 +58,15 @@ def test_ball_is_found_as_an_obstacle(fitted):
     assert grid.distance(BALL_CENTER[None])[0] < 0 < grid.distance(front[None])[0]
 
 
+def test_one_view_finds_no_obstacle(fitted):
+    """The same layer, shown to one of the cameras alone: nothing behind its surfaces is carved, so nothing is
+    found (the four views find the ball, above)."""
+    from fluidnexus.scenery.found_obstacles import find_obstacles
+
+    cameras, _, layer = fitted
+    assert find_obstacles(layer, cameras[:1], LO, HI) == []
+
+
 def _ball_mask(cam) -> np.ndarray:
     """[H, W] bool: the pixels whose ray hits the scene's ball."""
     rows, cols = np.mgrid[0:cam.height, 0:cam.width]
