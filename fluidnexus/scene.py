@@ -138,14 +138,21 @@ class Floor:
         side = (corners - np.asarray(self.point)) @ np.asarray(self.normal)
         return bool(side.min() <= 0.0 <= side.max())
 
+    def reach(self, origin: np.ndarray, directions: np.ndarray) -> np.ndarray:
+        """[N] the s > 0 at which each ray ``origin + s directions[i]`` meets the plane; inf where a ray runs
+        parallel to it or points away from it."""
+        n = np.asarray(self.normal, np.float64)
+        along = np.asarray(directions, np.float64) @ n
+        height = float(np.dot(np.asarray(self.point, np.float64) - origin, n))
+        ok = np.abs(along) >= 1e-12
+        s = np.full(along.shape, np.inf)
+        s[ok] = height / along[ok]
+        return np.where(s > 0, s, np.inf)
+
     def hit(self, origin: np.ndarray, direction: np.ndarray) -> np.ndarray | None:
         """Where the ray ``origin + s direction`` (s > 0) meets the plane, or None."""
-        n = np.asarray(self.normal)
-        along = float(np.dot(direction, n))
-        if abs(along) < 1e-12:
-            return None
-        s = float(np.dot(np.asarray(self.point) - origin, n)) / along
-        return None if s <= 0 else origin + s * np.asarray(direction)
+        s = float(self.reach(origin, np.asarray(direction)[None])[0])
+        return None if not np.isfinite(s) else origin + s * np.asarray(direction)
 
 
 @dataclass(frozen=True)

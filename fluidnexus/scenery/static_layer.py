@@ -189,15 +189,11 @@ def _textured(plate: np.ndarray, confidence: np.ndarray, fill: np.ndarray, cfg: 
 
 
 def floor_depth(camera, uv: np.ndarray, floor) -> np.ndarray:
-    """[N] the camera-space depth at which each pixel's ray meets ``floor`` (``scene.Floor``), inf where it does
-    not in front of the camera."""
-    direction = camera.unproject(uv, np.ones(len(uv))) - camera.center  # the ray at depth 1
-    normal = np.asarray(floor.normal, np.float64)
-    along = direction @ normal
-    height = float((np.asarray(floor.point, np.float64) - camera.center) @ normal)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = height / along
-    return np.where((along < 0) & (t > 0), t, np.inf)
+    """[N] the camera-space depth at which each pixel's ray meets ``floor`` (``scene.Floor``) from above, inf where
+    it does not in front of the camera or the camera is not above the floor."""
+    if float((camera.center - np.asarray(floor.point, np.float64)) @ np.asarray(floor.normal, np.float64)) <= 0:
+        return np.full(len(uv), np.inf)
+    return floor.reach(camera.center, camera.unproject(uv, np.ones(len(uv))) - camera.center)  # rays at depth 1
 
 
 def shell_radius(cameras, lo: np.ndarray, hi: np.ndarray, cfg: StaticConfig) -> float:

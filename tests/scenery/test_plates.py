@@ -80,19 +80,24 @@ def test_known_color_keeps_an_object_whole_under_smoke_that_never_leaves_part_of
     assert est.confidence[disk & (xx == 32)].max() < 0.5  # ... flagged unsure where never seen
 
 
+def _steady_smoke_over_white(back: np.ndarray, region: np.ndarray, opacity: float):
+    """The plate of 40 frames of dark smoke over ``back`` (a white backdrop, [48, 64, 3]): ``region`` covered at
+    ``opacity`` from frame 1 to the end, and some moving smoke elsewhere; the backdrop colour white is known."""
+    alpha = np.zeros((40, 48, 64), np.float32)
+    alpha[1:] = np.where(region, opacity, 0.0)
+    alpha[1:] += smoke_alpha(3, frames=39) * 0.3
+    return estimate_plate(composite(back, np.clip(alpha, 0, 1), "dark"), np.ones(3, np.float32))
+
+
 def test_known_color_steady_smoke_from_the_first_frames_is_not_an_object():
     """A steady column of dark smoke on a white backdrop that reaches its pixels in frame 1 and stays (a plume
     from frame 0): quiet and confident from then on, yet the backdrop's colour shows there in frame 0, so the
     plate is the colour, not the smoke. A static object beside it, in every frame, is kept."""
-    white = np.ones(3, np.float32)
     yy, xx = np.mgrid[0:48, 0:64]
-    back = np.broadcast_to(white, (48, 64, 3)).copy()
+    back = np.ones((48, 64, 3), np.float32)
     back[5:15, 45:60] = (0.3, 0.3, 0.35)
     column = (np.abs(xx - 24) < 5) & (yy > 8)
-    alpha = np.zeros((40, 48, 64), np.float32)
-    alpha[1:] = np.where(column, 0.6, 0.0)
-    alpha[1:] += smoke_alpha(3, frames=39) * 0.3  # some moving smoke elsewhere
-    est = estimate_plate(composite(back, np.clip(alpha, 0, 1), "dark"), white)
+    est = _steady_smoke_over_white(back, column, 0.6)
     assert est.source == "color"
     assert np.abs(est.plate - back).max(axis=2)[column].max() < 0.03
     assert np.abs(est.plate - back).max(axis=2)[5:15, 45:60].max() < 0.03
@@ -102,16 +107,12 @@ def test_known_color_object_covered_by_smoke_most_of_the_time_keeps_its_own_colo
     """A jet blown at a green box on a white backdrop covers the box from frame 1 to the end, steadily: the box's
     temporal mode is the smoke over it. Frame 0 shows the backdrop all around the box (nothing near it yet), so the
     plate holds the box as frame 0 shows it."""
-    white = np.ones(3, np.float32)
     yy, xx = np.mgrid[0:48, 0:64]
-    back = np.broadcast_to(white, (48, 64, 3)).copy()
+    back = np.ones((48, 64, 3), np.float32)
     box = (np.abs(xx - 32) < 6) & (np.abs(yy - 24) < 6)
     back[box] = (0.2, 0.6, 0.25)
     cloud = (np.abs(xx - 30) < 12) & (np.abs(yy - 24) < 10)  # larger than the box, over it in frames 1-39
-    alpha = np.zeros((40, 48, 64), np.float32)
-    alpha[1:] = np.where(cloud, 0.5, 0.0)
-    alpha[1:] += smoke_alpha(3, frames=39) * 0.3  # some moving smoke elsewhere
-    est = estimate_plate(composite(back, np.clip(alpha, 0, 1), "dark"), white)
+    est = _steady_smoke_over_white(back, cloud, 0.5)
     assert est.source == "color"
     assert np.abs(est.plate - back).max(axis=2)[box].max() < 0.03
     assert np.abs(est.plate - back).max(axis=2)[cloud & ~box].max() < 0.03
