@@ -76,14 +76,13 @@ def _pos(field: ti.template(), row, i):
 
 
 @ti.kernel
-def _clear_buckets(count: ti.template()):
+def _assign_cells(src: ti.template(), row: int, n: int, inv_h: float, key: ti.template(), count: ti.template(),
+                  start: ti.template(), mask: int):
+    """Clear the bucket counts and starts, then count the points per bucket (one launch: the loops run in order)."""
     for b in count:
         count[b] = 0
-
-
-@ti.kernel
-def _assign_cells(src: ti.template(), row: int, n: int, inv_h: float, key: ti.template(), count: ti.template(),
-                  mask: int):
+    for b in start:
+        start[b] = 0
     for i in range(n):
         b = _bucket_of(_cell_of(_pos(src, row, i), inv_h), mask)
         key[i] = b
@@ -92,8 +91,9 @@ def _assign_cells(src: ti.template(), row: int, n: int, inv_h: float, key: ti.te
 
 @ti.kernel
 def _sort_by_bucket(n: int, n_buckets: int, key: ti.template(), count: ti.template(), start: ti.template(),
-                    order: ti.template()):
-    """Exclusive prefix sum of the bucket counts, then a stable scatter (serial: deterministic order)."""
+                    order: ti.template(), src: ti.template(), row: int, sorted_pos: ti.template()):
+    """Exclusive prefix sum of the bucket counts, then a stable scatter (serial: deterministic order), then a
+    bucket-ordered copy of the positions, so the candidate scan streams through memory."""
     ti.loop_config(serialize=True)
     for b in range(n_buckets):
         start[b + 1] = start[b] + count[b]
@@ -102,11 +102,6 @@ def _sort_by_bucket(n: int, n_buckets: int, key: ti.template(), count: ti.templa
         b = key[i]
         count[b] -= 1
         order[start[b + 1] - count[b] - 1] = i
-
-
-@ti.kernel
-def _gather_sorted(n: int, src: ti.template(), row: int, order: ti.template(), sorted_pos: ti.template()):
-    # a bucket-ordered copy of the positions, so the candidate scan streams through memory
     for s in range(n):
         sorted_pos[s] = _pos(src, row, order[s])
 
@@ -116,6 +111,7 @@ def _fill_table(query: ti.template(), qrow: int, nq: int, inv_h: float, h2: floa
                 sorted_pos: ti.template(), start: ti.template(), order: ti.template(),
                 mask: int, nbr: ti.template(), nbr_count: ti.template(), max_count: ti.template()):
     width = nbr.shape[1]
+    max_count[None] = 0
     for i in range(nq):
         xi = _pos(query, qrow, i)
         ci = _cell_of(xi, inv_h)
@@ -227,13 +223,10 @@ class NeighborTable:
             raise ValueError(f"neighbour search over capacity: {n_src}/{self.source_capacity} sources, "
                              f"{n_query}/{self.query_capacity} queries")
         mask = self.n_buckets - 1
-        _clear_buckets(self.bucket_count)
-        _clear_buckets(self.bucket_start)
-        _assign_cells(src, src_row, n_src, 1.0 / h, self.key, self.bucket_count, mask)
-        _sort_by_bucket(n_src, self.n_buckets, self.key, self.bucket_count, self.bucket_start, self.order)
-        _gather_sorted(n_src, src, src_row, self.order, self.sorted_pos)
+        _assign_cells(src, src_row, n_src, 1.0 / h, self.key, self.bucket_count, self.bucket_start, mask)
+        _sort_by_bucket(n_src, self.n_buckets, self.key, self.bucket_count, self.bucket_start, self.order, src,
+                        src_row, self.sorted_pos)
         while True:
-            self.max_count[None] = 0
             _fill_table(query, query_row, n_query, 1.0 / h, h * h, int(exclude_self), self.sorted_pos,
                         self.bucket_start, self.order, mask, self.nbr, self.count, self.max_count)
             needed = int(self.max_count[None])

@@ -11,8 +11,46 @@ from .neighbors import NeighborTable
 from .runtime import real
 
 
+@ti.kernel
+def _write_rows(dst: ti.template(), start: ti.i32, src: ti.types.ndarray(), count: ti.i32):
+    """dst[start + i] = src[i] for i < count (src [count, width] for a vector field, [count] for a scalar one)."""
+    for i in range(count):
+        if ti.static(isinstance(dst, ti.MatrixField)):
+            for d in ti.static(range(dst.n)):
+                dst[start + i][d] = src[i, d]
+        else:
+            dst[start + i] = src[i]
+
+
+@ti.kernel
+def _read_rows(src: ti.template(), dst: ti.types.ndarray(), count: ti.i32):
+    """dst[i] = src[i] for i < count."""
+    for i in range(count):
+        if ti.static(isinstance(src, ti.MatrixField)):
+            for d in ti.static(range(src.n)):
+                dst[i, d] = src[i][d]
+        else:
+            dst[i] = src[i]
+
+
+@ti.kernel
+def _compact(field: ti.template(), rows: ti.types.ndarray(), kept: ti.i32, n: ti.i32):
+    """field[k] = field[rows[k]] for k < kept (rows ascending, so rows[k] >= k: in order, no row is overwritten
+    before it is read), then rows [kept, n) cleared."""
+    ti.loop_config(serialize=True)
+    for k in range(kept):
+        field[k] = field[rows[k]]
+    for k in range(kept, n):
+        if ti.static(isinstance(field, ti.MatrixField)):
+            for d in ti.static(range(field.n)):
+                field[k][d] = 0
+        else:
+            field[k] = 0
+
+
 class ParticleSet:
-    """Named per-particle attributes ``{name: width}`` held in Taichi fields of ``capacity`` rows.
+    """Named per-particle attributes ``{name: width}`` held in Taichi fields of ``capacity`` rows. Rows at and
+    beyond the active count hold zeros. Every call moves the active rows only, one kernel per attribute.
 
     Args:
         capacity: most particles.
@@ -27,19 +65,29 @@ class ParticleSet:
         self.defaults = dict(defaults or {})
         self.fields = {name: ti.Vector.field(w, real(), shape=self.capacity) if w > 1
                        else ti.field(real(), shape=self.capacity) for name, w in self.widths.items()}
+        self._dtype = np.float64 if real() == ti.f64 else np.float32
 
     def __len__(self) -> int:
         return self.n
 
+    def _shape(self, name: str, rows: int) -> tuple:
+        return (rows, self.widths[name]) if self.widths[name] > 1 else (rows,)
+
     def get(self, name: str) -> np.ndarray:
         """Active rows of an attribute, [n, width] (or [n] for width 1)."""
-        return self.fields[name].to_numpy()[: self.n]
+        out = np.empty(self._shape(name, self.n), self._dtype)
+        if self.n:
+            _read_rows(self.fields[name], out, self.n)
+        return out
+
+    def _write(self, name: str, start: int, values: np.ndarray) -> None:
+        count = values.shape[0]
+        if count:
+            _write_rows(self.fields[name], start, np.ascontiguousarray(values, self._dtype), count)
 
     def set(self, name: str, values) -> None:
         """Overwrite the active rows of an attribute."""
-        full = self.fields[name].to_numpy()
-        full[: self.n] = np.asarray(values).reshape(full[: self.n].shape)
-        self.fields[name].from_numpy(full)
+        self._write(name, 0, np.asarray(values).reshape(self._shape(name, self.n)))
 
     def add(self, **values) -> slice:
         """Append rows; every attribute not given gets its default (or 0). Returns the new rows' slice."""
@@ -52,15 +100,13 @@ class ParticleSet:
         count = rows.pop()
         if self.n + count > self.capacity:
             raise ValueError(f"adding {count} particles to {self.n} exceeds the capacity {self.capacity}")
-        for name, w in self.widths.items():
-            full = self.fields[name].to_numpy()
+        for name in self.widths:
+            shape = self._shape(name, count)
             if name in values:
-                v = np.asarray(values[name], dtype=full.dtype).reshape(count, *full.shape[1:])
+                v = np.asarray(values[name], dtype=self._dtype).reshape(shape)
             else:
-                default = np.asarray(self.defaults.get(name, 0.0), dtype=full.dtype)
-                v = np.broadcast_to(default, (count,) + full.shape[1:])
-            full[self.n: self.n + count] = v
-            self.fields[name].from_numpy(full)
+                v = np.broadcast_to(np.asarray(self.defaults.get(name, 0.0), dtype=self._dtype), shape)
+            self._write(name, self.n, v)
         rows = slice(self.n, self.n + count)
         self.n += count
         return rows
@@ -70,12 +116,11 @@ class ParticleSet:
         mask = np.asarray(mask, dtype=bool)
         if mask.shape != (self.n,):
             raise ValueError(f"mask must have shape ({self.n},), got {mask.shape}")
-        kept = int(mask.sum())
-        for fld in self.fields.values():
-            full = fld.to_numpy()
-            full[:kept] = full[: self.n][mask]
-            full[kept:] = 0
-            fld.from_numpy(full)
+        rows = np.flatnonzero(mask).astype(np.int32)
+        kept = len(rows)
+        if kept < self.n:
+            for fld in self.fields.values():
+                _compact(fld, rows, kept, self.n)
         removed, self.n = self.n - kept, kept
         return removed
 
