@@ -4,8 +4,10 @@ The base fits of the two structures do not depend on each other, and the candida
 not either: each is one task. With one job the tasks run here, in order. With more, that many worker processes
 start (spawned: a forked Taichi runtime is not safe), each with the engine started as in this process and its own
 plume simulator and fitter built from the same inputs; a rollout does not depend on the process it runs in, so the
-report does not depend on ``jobs`` (a test compares). Every model a worker scored comes back with its task's result
-in the order of the tasks, as in a serial run, so the search spread (``search.search_spread``) sees the same fits.
+report does not depend on ``jobs`` (a test compares). A task can be started before earlier ones have finished (the
+paper's gas's candidates while the gas in ambient air is still being fitted); every model a worker scored comes back
+with its task's result, and results are collected in the order the tasks were started, so the fits join the
+fitter's record in the order of a serial run and the search spread (``search.search_spread``) sees the same fits.
 """
 from __future__ import annotations
 
@@ -73,19 +75,32 @@ class FitPool:
             self._pool.shutdown(cancel_futures=True)
             self._pool = None
 
-    def map(self, fn, arglists: list[tuple]) -> list:
-        """``[fn(fitter, *args) for args in arglists]``; the models the workers scored join ``fitter.scored``
-        (and their rollouts ``fitter.evaluations``) in task order."""
+    def submit(self, fn, args: tuple) -> "Task":
+        """Start ``fn(fitter, *args)``: in a worker, or here and now with one job. Call the tasks' ``result`` in
+        the order they were started: that is when a worker's scored models join ``fitter.scored`` (and its rollouts
+        ``fitter.evaluations``)."""
         if self._pool is None:
-            return [fn(self.fitter, *args) for args in arglists]
-        futures = [self._pool.submit(_run, fn, args) for args in arglists]
-        results = []
-        for future in futures:
-            result, scored, evaluations = future.result()
-            self.fitter.scored.extend(scored)
-            self.fitter.evaluations += evaluations
-            results.append(result)
-        return results
+            return Task(self.fitter, result=fn(self.fitter, *args))
+        return Task(self.fitter, future=self._pool.submit(_run, fn, args))
+
+    def map(self, fn, arglists: list[tuple]) -> list:
+        """``[fn(fitter, *args) for args in arglists]``, side by side."""
+        return [task.result() for task in [self.submit(fn, args) for args in arglists]]
+
+
+class Task:
+    """A started fit task: its result, from a worker's future or computed here."""
+
+    def __init__(self, fitter: Fitter, result=None, future=None):
+        self._fitter, self._result, self._future = fitter, result, future
+
+    def result(self):
+        if self._future is not None:
+            result, scored, evaluations = self._future.result()
+            self._fitter.scored.extend(scored)
+            self._fitter.evaluations += evaluations
+            self._result, self._future = result, None
+        return self._result
 
 
 def _start(config, setup, observed, cameras, sigma, train) -> None:

@@ -153,31 +153,43 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
     fitter = Fitter(sim, observed.images, cams, sigma, tr)
     log.info("diagnose: %d views (%s), %d frames at %dx%d, %d seeded particles", len(cams),
              ", ".join(observed.names), d - a, cams[0].width, cams[0].height, len(seed))
-    with FitPool(fitter, jobs) as pool:  # the two structures side by side, then the candidates
-        bases = {}
-        for structure, (fit, control) in zip(STRUCTURES, pool.map(fit_structure, [(s, maxfev) for s in STRUCTURES])):
+    obs_o = observables(observed.images, cams, observed.fps)
+
+    def drift(base) -> np.ndarray:  # the footage's centroid drift away from a base model's, over the training frames
+        return _drift_velocity(obs_o.centroid[tr] - observables(base.images, cams, observed.fps).centroid[tr],
+                               observed.fps)
+
+    def start_candidates(pool, st: str, names) -> list:
+        d = drift(bases[st])
+        return [((st, name), pool.submit(fit_candidate, (bases[st], name, maxfev, d))) for name in names]
+
+    # the two structures side by side; the paper's gas's candidates start as soon as its base is fitted (the gas in
+    # ambient air takes longer), the air's once the structure is judged
+    with FitPool(fitter, jobs) as pool:
+        structure_tasks = [pool.submit(fit_structure, (s, maxfev)) for s in STRUCTURES]
+        bases, tasks = {}, []
+        for structure, task in zip(STRUCTURES, structure_tasks):
+            fit, control = task.result()
             log.info("base fit (%s): %s gain %.4g, train error %.4f, validation error %.4f", structure,
                      _describe(fit.params), fit.params.gain, fitter.train_error(fit), fit.errors[va].mean())
             log.info("control refit (%s, alpha only): alpha %.4f, train error %.4f, validation error %.4f",
                      structure, control.params.alpha, fitter.train_error(control), control.errors[va].mean())
             bases[structure] = control
+            if structure == "paper_gas":  # the terms are always tried on the paper's gas
+                tasks += start_candidates(pool, structure, candidates)
         # the ambient-air structure is judged like a term against the paper's gas (search.judge)
         structure_judged = judge(bases["paper_gas"], bases["ambient_air"], tr, va)
         log.info("structure ambient_air against paper_gas: training error %.4f -> %.4f, validation error %.4f -> "
                  "%.4f (gain %.1f %%, p %.2g)", structure_judged.train_before, structure_judged.train_after,
                  structure_judged.before, structure_judged.after, 100 * structure_judged.relative_gain,
                  structure_judged.p_value)
-        # the terms are tried on the paper's gas always, and on the gas in ambient air where it passes: a term and
-        # the structure can explain the same miss, and the explanation with the lower validation error wins
+        # and on the gas in ambient air where it passes: a term and the structure can explain the same miss, and
+        # the explanation with the lower validation error wins
         tried = {"paper_gas": candidates}
         if structure_judged.clear_gain:
             tried["ambient_air"] = tuple(n for n in candidates if n not in PAPER_GAS_ONLY)
-        jobs_list = [(st, name) for st, names in tried.items() for name in names]
-        obs_o = observables(observed.images, cams, observed.fps)
-        drift = {st: _drift_velocity(obs_o.centroid[tr] - observables(bases[st].images, cams, observed.fps)
-                                     .centroid[tr], observed.fps) for st in tried}
-        results = dict(zip(jobs_list, pool.map(fit_candidate, [(bases[st], name, maxfev, drift[st])
-                                                                for st, name in jobs_list])))
+            tasks += start_candidates(pool, "ambient_air", tried["ambient_air"])
+        results = {key: task.result() for key, task in tasks}
         # only a candidate with a clear gain can pass: only its term is switched off to see whether it carries it
         clear = [key for key, fit in results.items() if judge(bases[key[0]], fit, tr, va).clear_gain]
         ablations = dict(zip(clear, pool.map(ablate, [(results[key],) for key in clear])))

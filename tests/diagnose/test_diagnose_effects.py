@@ -3,8 +3,8 @@
 Each test hides one effect (or two) at a magnitude drawn from a seeded range, runs diagnose on 48 frames (train
 0:32, validate 32:48; the burst 90 frames, 0:60 and 60:90) and requires the right name. Each diagnose fits both
 model structures and tries the candidates on the paper's gas and, where the air passes, on the air too, its fits
-side by side in as many processes as there are cores (``--jobs``, at most 6): 40-57 s each on the idle 2-core VM,
-the wind's (20 evaluations) 106 s; this file's fast tier 310 s (2026-11-27; 347 s on 2026-11-26). ``make test`` runs
+side by side in as many processes as there are cores (``--jobs``, at most 6): 36-51 s each on the idle 2-core VM,
+the wind's (20 evaluations) 100 s; this file's fast tier 284 s (2026-11-27; 347 s on 2026-11-26). ``make test`` runs
 the fast tier (the plain plume, the paper's-gas control, entrainment in the paper's gas, wind, dissipation) and the
 visibility test; ``make test-slow`` runs the rest. Buoyancy decay, vorticity confinement, viscosity and swirl are
 ``xfail``: their data differ from a plain plume with the same generator constants
