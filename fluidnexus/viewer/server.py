@@ -161,7 +161,8 @@ class Viewer:
         self.switch = gui.add_button("switch run (toggle)", disabled=len(self.runs) < 2)
         self.which = 0
         self.frame.on_update(lambda _: self.show(int(self.frame.value)))
-        for box in (self.smoke_on, self.particles_on, self.speed_top):
+        self.smoke_on.on_update(lambda _: self._show_smoke(self.smoke_on.value))
+        for box in (self.particles_on, self.speed_top):
             box.on_update(lambda _: self.show(self.shown, force=True))
         self.cameras_on.on_update(lambda _: self._set_visible("frusta", self.cameras_on.value))
         self.scenery_on.on_update(lambda _: self._set_visible("scenery", self.scenery_on.value))
@@ -311,6 +312,13 @@ class Viewer:
         self.which = (self.which + 1) % len(self.runs)
         if self.layout.value != LAYOUTS[0]:
             self._place_runs()
+
+    def _show_smoke(self, visible: bool) -> None:
+        """Show or hide the shown frame's smoke in place (its splats are not sent again)."""
+        with self._lock:
+            for node in self.nodes:
+                if node.smoke is not None:
+                    node.smoke.visible = visible
 
     def _set_visible(self, part: str, visible: bool) -> None:
         with self._lock:
