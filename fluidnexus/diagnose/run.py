@@ -159,9 +159,9 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
         return _drift_velocity(obs_o.centroid[tr] - observables(base.images, cams, observed.fps).centroid[tr],
                                observed.fps)
 
-    def start_candidates(pool, st: str, names) -> list:
-        d = drift(bases[st])
-        return [((st, name), pool.submit(fit_candidate, (bases[st], name, maxfev, d))) for name in names]
+    def start_candidates(pool, st: str, base, names) -> list:
+        d = drift(base)
+        return [((st, name), pool.submit(fit_candidate, (base, name, maxfev, d))) for name in names]
 
     # the two structures side by side; the paper's gas's candidates start as soon as its base is fitted (the gas in
     # ambient air takes longer), the air's once the structure is judged
@@ -176,7 +176,7 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
                      structure, control.params.alpha, fitter.train_error(control), control.errors[va].mean())
             bases[structure] = control
             if structure == "paper_gas":  # the terms are always tried on the paper's gas
-                tasks += start_candidates(pool, structure, candidates)
+                tasks += start_candidates(pool, structure, control, candidates)
         # the ambient-air structure is judged like a term against the paper's gas (search.judge)
         structure_judged = judge(bases["paper_gas"], bases["ambient_air"], tr, va)
         log.info("structure ambient_air against paper_gas: training error %.4f -> %.4f, validation error %.4f -> "
@@ -188,7 +188,7 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
         tried = {"paper_gas": candidates}
         if structure_judged.clear_gain:
             tried["ambient_air"] = tuple(n for n in candidates if n not in PAPER_GAS_ONLY)
-            tasks += start_candidates(pool, "ambient_air", tried["ambient_air"])
+            tasks += start_candidates(pool, "ambient_air", bases["ambient_air"], tried["ambient_air"])
         results = {key: task.result() for key, task in tasks}
         # only a candidate with a clear gain can pass: only its term is switched off to see whether it carries it
         clear = [key for key, fit in results.items() if judge(bases[key[0]], fit, tr, va).clear_gain]

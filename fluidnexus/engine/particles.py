@@ -7,30 +7,9 @@ Housekeeping happens between steps, never inside a differentiated step.
 import numpy as np
 import taichi as ti
 
+from . import tensors
 from .neighbors import NeighborTable
 from .runtime import real
-
-
-@ti.kernel
-def _write_rows(dst: ti.template(), start: ti.i32, src: ti.types.ndarray(), count: ti.i32):
-    """dst[start + i] = src[i] for i < count (src [count, width] for a vector field, [count] for a scalar one)."""
-    for i in range(count):
-        if ti.static(isinstance(dst, ti.MatrixField)):
-            for d in ti.static(range(dst.n)):
-                dst[start + i][d] = src[i, d]
-        else:
-            dst[start + i] = src[i]
-
-
-@ti.kernel
-def _read_rows(src: ti.template(), dst: ti.types.ndarray(), count: ti.i32):
-    """dst[i] = src[i] for i < count."""
-    for i in range(count):
-        if ti.static(isinstance(src, ti.MatrixField)):
-            for d in ti.static(range(src.n)):
-                dst[i, d] = src[i][d]
-        else:
-            dst[i] = src[i]
 
 
 @ti.kernel
@@ -65,7 +44,6 @@ class ParticleSet:
         self.defaults = dict(defaults or {})
         self.fields = {name: ti.Vector.field(w, real(), shape=self.capacity) if w > 1
                        else ti.field(real(), shape=self.capacity) for name, w in self.widths.items()}
-        self._dtype = np.float64 if real() == ti.f64 else np.float32
 
     def __len__(self) -> int:
         return self.n
@@ -75,19 +53,11 @@ class ParticleSet:
 
     def get(self, name: str) -> np.ndarray:
         """Active rows of an attribute, [n, width] (or [n] for width 1)."""
-        out = np.empty(self._shape(name, self.n), self._dtype)
-        if self.n:
-            _read_rows(self.fields[name], out, self.n)
-        return out
-
-    def _write(self, name: str, start: int, values: np.ndarray) -> None:
-        count = values.shape[0]
-        if count:
-            _write_rows(self.fields[name], start, np.ascontiguousarray(values, self._dtype), count)
+        return tensors.store(self.fields[name], self.n).numpy()
 
     def set(self, name: str, values) -> None:
         """Overwrite the active rows of an attribute."""
-        self._write(name, 0, np.asarray(values).reshape(self._shape(name, self.n)))
+        tensors.load(self.fields[name], np.asarray(values).reshape(self._shape(name, self.n)))
 
     def add(self, **values) -> slice:
         """Append rows; every attribute not given gets its default (or 0). Returns the new rows' slice."""
@@ -103,10 +73,10 @@ class ParticleSet:
         for name in self.widths:
             shape = self._shape(name, count)
             if name in values:
-                v = np.asarray(values[name], dtype=self._dtype).reshape(shape)
+                v = np.asarray(values[name]).reshape(shape)
             else:
-                v = np.broadcast_to(np.asarray(self.defaults.get(name, 0.0), dtype=self._dtype), shape)
-            self._write(name, self.n, v)
+                v = np.broadcast_to(np.asarray(self.defaults.get(name, 0.0)), shape)
+            tensors.load(self.fields[name], np.ascontiguousarray(v), start=self.n)
         rows = slice(self.n, self.n + count)
         self.n += count
         return rows

@@ -1,8 +1,9 @@
 """The engine's one bridge between Taichi fields and torch tensors (simulator and renderer alike).
 
-Copies cover the first n entries of a field (its capacity may be larger): a vector field [cap] or one row of a
-[rows, cap] field holds [n, dims] tensors, a scalar field [cap] (or a row of [rows, cap]) holds n values, given
-in any shape with n elements. A field's ``.grad`` is a field too, so the same calls move gradients.
+Copies cover the first n entries of a field (its capacity may be larger; a load may start further on): a vector
+field [cap] or one row of a [rows, cap] field holds [n, dims] tensors, a scalar field [cap] (or a row of [rows,
+cap]) holds n values, given in any shape with n elements. A field's ``.grad`` is a field too, so the same calls
+move gradients.
 
 Every tensor handed to a kernel is detached first: Taichi inspects the ``.grad`` of a tensor that requires grad
 (torch then warns about reading the ``.grad`` of a non-leaf, and a leaf gets a zero ``.grad`` allocated).
@@ -34,22 +35,22 @@ def as_tensor(x, dims: int | None = None) -> torch.Tensor:
 
 
 @ti.kernel
-def _load_vec(dst: ti.template(), row: ti.i32, src: ti.types.ndarray(), n: ti.i32):
+def _load_vec(dst: ti.template(), row: ti.i32, start: ti.i32, src: ti.types.ndarray(), n: ti.i32):
     for i in range(n):
         for d in ti.static(range(dst.n)):
             if ti.static(len(dst.shape) == 2):
-                dst[row, i][d] = src[i, d]
+                dst[row, start + i][d] = src[i, d]
             else:
-                dst[i][d] = src[i, d]
+                dst[start + i][d] = src[i, d]
 
 
 @ti.kernel
-def _load_scalar(dst: ti.template(), row: ti.i32, src: ti.types.ndarray(), n: ti.i32):
+def _load_scalar(dst: ti.template(), row: ti.i32, start: ti.i32, src: ti.types.ndarray(), n: ti.i32):
     for i in range(n):
         if ti.static(len(dst.shape) == 2):
-            dst[row, i] = src[i]
+            dst[row, start + i] = src[i]
         else:
-            dst[i] = src[i]
+            dst[start + i] = src[i]
 
 
 @ti.kernel
@@ -76,13 +77,14 @@ def _dims(field) -> int:
     return field.n if isinstance(field, ti.MatrixField) else 1
 
 
-def load(field, values, row: int = 0) -> None:
-    """Write ``values`` into the first n entries of ``field`` ([cap], or row ``row`` of [rows, cap]).
+def load(field, values, row: int = 0, start: int = 0) -> None:
+    """Write ``values`` into the n entries of ``field`` from ``start`` on ([cap], or row ``row`` of [rows, cap]).
 
     Args:
         field: a Taichi field (or a field's ``.grad``).
         values: numpy or torch (any device; converted to the running precision), [n, dims] for a vector field,
             n values in any shape for a scalar field.
+        start: the first entry written (0: the first n entries).
     """
     t = values.detach() if isinstance(values, torch.Tensor) else torch.as_tensor(np.asarray(values))
     t = t.to(dtype=torch_dtype()).contiguous()
@@ -91,10 +93,10 @@ def load(field, values, row: int = 0) -> None:
         raise ValueError(f"expected shape [n, {dims}], got {tuple(t.shape)}")
     n = t.numel() // dims
     t = t.reshape(n) if dims == 1 else t
-    if n > field.shape[-1]:
-        raise ValueError(f"{n} rows exceed the capacity {field.shape[-1]}")
+    if start + n > field.shape[-1]:
+        raise ValueError(f"{n} rows from row {start} exceed the capacity {field.shape[-1]}")
     if n:
-        (_load_vec if dims > 1 else _load_scalar)(field, row, t, n)
+        (_load_vec if dims > 1 else _load_scalar)(field, row, start, t, n)
 
 
 def store(field, n: int, row: int = 0, out: torch.Tensor | None = None) -> torch.Tensor:
