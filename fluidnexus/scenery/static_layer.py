@@ -49,6 +49,7 @@ from ..progress import progress
 from ..scene_scale import box_size
 from .static_hull import hull_points, in_box
 from .stereo import DepthMap, StereoConfig, depth_maps
+from .view_objects import object_seeds
 
 STATIC_FILE = "static.npz"
 FORMAT = "fluidnexus-static/1"
@@ -221,10 +222,12 @@ def _sees_backdrop(depth: DepthMap, lo: np.ndarray, hi: np.ndarray, cfg: StaticC
     return int((np.linalg.norm(points - cam.center, axis=1) > reach).sum()) >= cfg.backdrop * cam.width * cam.height
 
 
-def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backdrop=None, floor=None) -> StaticLayer:
+def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backdrop=None, floor=None,
+                  anchor=None) -> StaticLayer:
     """The seeds of a fit (module docstring), deterministic in ``cfg.seed``; plate pixels with confidence under
     0.5 are not read. The background colour is ``backdrop`` (RGB) when given, else the median colour of the sure
-    pixels of every plate."""
+    pixels of every plate. A single view over a plain backdrop with an ``anchor`` seeds its objects' surfaces
+    there (``view_objects``)."""
     lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
     generator = torch.Generator().manual_seed(cfg.seed)
     sure = np.concatenate([p[c >= 0.5] for p, c in zip(plates, confidences)])
@@ -245,12 +248,20 @@ def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backd
         # each seed as wide as its ray's pixel footprint at its depth
         _, z = camera.project(p)
         spacing.append(np.abs(z) * camera.width / cfg.rays / camera.K[0, 0])
+    info = {}
+    if len(cameras) == 1 and anchor is not None and not _textured(plates[0], confidences[0], background, cfg):
+        p, c, s = object_seeds(cameras[0], plates[0], confidences[0], background, anchor, cfg.plain,
+                               cfg.max_gaussians // 2)
+        points.append(p)
+        colors.append(c)
+        spacing.append(s)
+        info["objects_at"] = [round(float(v), 6) for v in anchor]  # where this view's objects were placed
     means, spacing = np.concatenate(points).reshape(-1, 3), np.concatenate(spacing)
     quats = np.tile([1.0, 0.0, 0.0, 0.0], (len(means), 1))
     colors = np.concatenate(colors).reshape(len(means), plates[0].shape[-1])
     return StaticLayer(means.astype(np.float32), np.tile(0.5 * spacing[:, None], (1, 3)).astype(np.float32),
                        quats.astype(np.float32), np.full(len(means), cfg.initial_opacity, np.float32),
-                       colors.astype(np.float32), background.astype(np.float32))
+                       colors.astype(np.float32), background.astype(np.float32), info)
 
 
 def _channels(color, channels: int) -> np.ndarray:
@@ -365,7 +376,7 @@ def _check_inputs(cameras, plates, confidences) -> None:
 
 
 def fit_static(cameras, plates, confidences, lo, hi, cfg: StaticConfig = StaticConfig(), backdrop=None,
-               floor=None) -> StaticLayer:
+               floor=None, anchor=None) -> StaticLayer:
     """Fit a static layer to clean plates.
 
     Args:
@@ -375,8 +386,12 @@ def fit_static(cameras, plates, confidences, lo, hi, cfg: StaticConfig = StaticC
         cfg: settings; ``cfg.seed`` makes the fit deterministic.
         backdrop: a known colour beyond everything (RGB, scene.json ``backdrop_color``: PINF Game's black sky), or
             None for the plates' median colour; what shows it seeds nothing, and the background colour starts at it.
+        floor: the scene's floor (``scene.Floor``), where a single view over a textured backdrop seeds its rays.
+        anchor: where a single view's objects over a plain backdrop stand (a point, metres; ``view_objects``), or
+            None: then they seed nothing.
     Returns:
-        The fitted :class:`StaticLayer`; ``info`` holds the final loss, the Gaussian count and the settings.
+        The fitted :class:`StaticLayer`; ``info`` holds the final loss, the Gaussian count, the settings and, where
+        a single view's objects were seeded at ``anchor``, ``objects_at``.
     """
     _check_inputs(cameras, plates, confidences)
     lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
@@ -385,7 +400,8 @@ def fit_static(cameras, plates, confidences, lo, hi, cfg: StaticConfig = StaticC
     dtype = torch_dtype()
     targets = [torch.as_tensor(np.asarray(p), dtype=dtype) for p in plates]
     weights = [torch.as_tensor(np.asarray(c), dtype=dtype)[..., None] for c in confidences]
-    params = _Params(initial_layer(cameras, plates, confidences, lo, hi, cfg, backdrop, floor), dtype)
+    seeds = initial_layer(cameras, plates, confidences, lo, hi, cfg, backdrop, floor, anchor)
+    params = _Params(seeds, dtype)
     opt = _optimizer(params, cfg, size)
     n = params.tensors["means"].shape[0]
     grad_sum, seen = np.zeros(n), np.zeros(n)
@@ -422,7 +438,7 @@ def fit_static(cameras, plates, confidences, lo, hi, cfg: StaticConfig = StaticC
     plain = _plain(params.tensors["colors"], params.background, cfg)  # those that turned plain after the last prune
     params.tensors = {k: v.detach()[~plain] for k, v in params.tensors.items()}
     return params.layer({"loss": loss_value, "gaussians": int(params.tensors["means"].shape[0]),
-                         "config": cfg.to_dict(), "volume": [lo.tolist(), hi.tolist()]})
+                         "config": cfg.to_dict(), "volume": [lo.tolist(), hi.tolist()], **seeds.info})
 
 
 def _accumulate(params: _Params, camera: Camera, grad_sum: np.ndarray, seen: np.ndarray) -> None:

@@ -75,6 +75,18 @@ def smoke_masks(scene: Scene, cameras: dict, plates: list, frames: tuple[int, in
             for k in range(len(videos[0]))]
 
 
+def view_anchor(scene: Scene) -> np.ndarray | None:
+    """Where a single view's objects over a plain backdrop stand (``view_objects``): the declared source's centre,
+    else the plume's foot that ``synth`` found in the input view (a novel view's provenance), else None."""
+    if scene.source is not None:
+        return np.asarray(scene.source.center, np.float64)
+    for view in scene.views:
+        foot = ((view.provenance or {}).get("synth") or {}).get("plume_foot")
+        if foot is not None:
+            return np.asarray(foot["center"], np.float64)
+    return None
+
+
 def fit_scenery(scene: Scene, declared: Scenery, cameras: dict, channels: int, iterations: int, seed: int,
                 frames: tuple[int, int], saved: Path | None = None) -> Scenery:
     """With plates: the static layer (read from ``saved``, a run's static.npz, when it exists; else fitted) and
@@ -94,7 +106,7 @@ def fit_scenery(scene: Scene, declared: Scenery, cameras: dict, channels: int, i
     else:
         layer = fit_static(cams, plates, confidences, scene.volume.min, scene.volume.max,
                            StaticConfig(iterations=iterations, seed=seed), backdrop=scene.backdrop_color,
-                           floor=scene.ground())
+                           floor=scene.ground(), anchor=view_anchor(scene))
         log.info("static layer: %d Gaussians fitted to %d plates (loss %.4g)", len(layer), len(cams),
                  layer.info["loss"])
     found = find_obstacles(layer, cams, scene.volume.min, scene.volume.max, confidences=confidences, smoke=smoke)
@@ -103,8 +115,9 @@ def fit_scenery(scene: Scene, declared: Scenery, cameras: dict, channels: int, i
         log.info("obstacle found in the footage, a %s: centre %s, radius %.4g m, volume %.4g m^3; the gas %s",
                  body.kind, np.round(body.center, 4), body.radius, body.volume, body.gas())
     obstacle = join(declared.obstacle, *(b.engine_body() for b in found))
+    placed = {"objects_at": layer.info["objects_at"]} if "objects_at" in layer.info else {}
     record = {**declared.record, "static_layer": {"file": STATIC_FILE, "gaussians": len(layer),
-                                                  "plates": sorted(named)},
+                                                  "plates": sorted(named), **placed},
               "found_obstacles": [b.to_dict() for b in found]}
     return replace(declared, layer=layer, obstacle=obstacle, record=record)
 

@@ -40,6 +40,16 @@ def floor_mask(cam: Camera) -> np.ndarray:
     return ((t_floor > 0) & ((t_floor < t_plane) | (t_plane <= 0))).reshape(cam.height, cam.width)
 
 
+def ball_mask(cam) -> np.ndarray:
+    """[H, W] bool: the pixels whose ray hits the scene's ball."""
+    rows, cols = np.mgrid[0:cam.height, 0:cam.width]
+    d = cam.unproject(np.stack([cols.ravel() + 0.5, rows.ravel() + 0.5], axis=1), 1.0) - cam.center
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    oc = cam.center - BALL_CENTER
+    b = d @ oc
+    return ((b ** 2 - (oc @ oc - BALL_RADIUS ** 2) > 0) & (b < 0)).reshape(cam.height, cam.width)
+
+
 def render(cam: Camera, floor: bool = False) -> np.ndarray:
     """[H, W, 3] image of the scene seen by ``cam`` (one ray per pixel centre); with ``floor``, a textured floor
     at the volume's bottom face (y = 0) in front of the backdrop plane."""

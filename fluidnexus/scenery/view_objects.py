@@ -1,0 +1,81 @@
+"""Objects one view shows over a plain backdrop, given a depth and a body (docs/static-layer.md, "A single view").
+
+One view does not see how far away an object is, nor how deep it is. Over a textured backdrop a single view's
+static layer seeds its rays on the floor and a shell (``static_layer``); over a plain backdrop (black, white) what
+differs from the backdrop's colour is an object, which those seeds would put behind the scene. This module states
+two assumptions instead and fills the object's body with seeds from them:
+
+- **It stands at the smoke's depth.** An object seen in a smoke video over a plain backdrop is what the smoke
+  meets (a ball, a box in the plume's path), so its upright axis is at the camera-space depth of ``anchor``: the
+  declared source, else the plume's foot that ``synth`` found (``world.view_anchor``).
+- **It is round in plan.** Each connected patch of object pixels is a solid of revolution about an upright axis
+  through the patch's middle column: the ray of a pixel ``x`` metres beside the axis, in a row whose half-width is
+  ``a``, crosses the body from ``sqrt(a^2 - x^2)`` in front of the axis to as far behind it; seeds fill that chord
+  with the pixel's colour. From a camera turned about the plume the object then shows as wide as it is across,
+  where the plume is; the input view's fit sets the colours and opacities it sees.
+
+Patches under ``min_pixels`` are left out (a plate's noise, not an object)."""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+MIN_PIXELS = 4  # a patch of fewer object pixels is noise, not an object
+
+
+def object_mask(plate: np.ndarray, confidence: np.ndarray, fill: np.ndarray, plain: float) -> np.ndarray:
+    """[H, W] bool: the sure pixels (confidence >= 0.5) whose colour differs from ``fill`` by more than ``plain``."""
+    plate = np.asarray(plate, np.float64)
+    differs = np.abs(plate - np.asarray(fill, np.float64).reshape(1, 1, -1)).max(axis=-1) > plain
+    return differs & (np.asarray(confidence) >= 0.5)
+
+
+def _lattice(labels: np.ndarray, count: int, stride: int, metres_per_px: float, min_pixels: int):
+    """Per ``stride``-th object pixel of every patch: (column, row, half-depth of the body there in metres)."""
+    out = []
+    for label in range(1, count):
+        rows, cols = np.nonzero(labels == label)
+        if len(rows) < min_pixels:
+            continue
+        axis = 0.5 * (cols.min() + cols.max() + 1)  # the patch's middle column (pixel edges)
+        for row in np.unique(rows[rows % stride == 0]):
+            in_row = cols[rows == row]
+            half = 0.5 * (in_row.max() + 1 - in_row.min()) * metres_per_px  # the row's half-width a
+            c = in_row[in_row % stride == 0]
+            x = (c + 0.5 - axis) * metres_per_px
+            out.append((c, np.full(len(c), row), np.sqrt(np.maximum(half ** 2 - x ** 2, 0.0))))
+    if not out:
+        return np.zeros(0, int), np.zeros(0, int), np.zeros(0)
+    return tuple(np.concatenate(a) for a in zip(*out))
+
+
+def object_seeds(camera, plate: np.ndarray, confidence: np.ndarray, fill: np.ndarray, anchor, plain: float,
+                 budget: int, min_pixels: int = MIN_PIXELS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(points [N, 3], colours [N, C], spacing [N]): every object patch of the view filled as its body (module
+    docstring) on a lattice of ``stride`` pixels' footprint at the axis's depth, across the image and in depth,
+    each seed with its pixel's colour; the stride is the smallest that keeps N within ``budget``, and ``spacing``
+    is the lattice's. Nothing when the anchor is behind the camera."""
+    mask = object_mask(plate, confidence, fill, plain)
+    z0 = float(camera.project(np.asarray(anchor, np.float64)[None])[1][0])
+    empty = (np.zeros((0, 3)), np.zeros((0, plate.shape[-1])), np.zeros(0))
+    if z0 <= 0 or not mask.any():
+        return empty
+    count, labels = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)
+    metres_per_px = z0 / float(camera.K[0, 0])
+    stride = 0
+    while True:  # the seeds fall as the stride's cube
+        stride += 1
+        step = stride * metres_per_px
+        cols, rows, depth = _lattice(labels, count, stride, metres_per_px, min_pixels)
+        layers = np.floor(depth / step).astype(int)  # seeds at k * step in front of and behind the axis
+        if int((2 * layers + 1).sum()) <= budget:
+            break
+    if len(cols) == 0:
+        return empty
+    k = np.concatenate([np.arange(-n, n + 1) for n in layers])
+    pixel = np.repeat(np.arange(len(cols)), 2 * layers + 1)
+    uv = np.stack([cols[pixel] + 0.5, rows[pixel] + 0.5], axis=1)
+    points = camera.unproject(uv, z0 + k * step)
+    colors = np.asarray(plate, np.float64)[rows[pixel], cols[pixel]].reshape(len(pixel), -1)
+    return points, colors, np.full(len(points), step)
+
