@@ -168,7 +168,8 @@ def find_obstacles(layer: StaticLayer, cameras, lo, hi, cfg: FinderConfig = Find
 
     A single view finds nothing: what lies behind its surfaces is never carved, so every surface it shows would
     become a body reaching to the volume's far side (a single video's floor seeds made a "ball" 0.36 m across).
-    A single video's obstacles are declared (scene.json ``obstacles``).
+    A single video's obstacles are declared (scene.json ``obstacles``), or over a plain backdrop taken as balls
+    at the plume's depth (``view_objects``, :func:`ball_obstacle`).
     """
     if len(cameras) < 2:
         return []
@@ -276,6 +277,24 @@ def signed_distance(body: np.ndarray, spacing: float) -> np.ndarray:
     outside = ndimage.distance_transform_edt(~padded)
     inside = ndimage.distance_transform_edt(padded)
     return np.where(padded, -(inside - 0.5), outside - 0.5) * spacing
+
+
+def ball_obstacle(center, radius: float, lo, hi, cfg: FinderConfig = FinderConfig()) -> FoundObstacle:
+    """A solid ball in the flow as a found obstacle (a single view's object, ``view_objects.object_balls``): its
+    signed distance on the finder's voxel size, 200 surface points, sphere-like (rms 0), touching no face."""
+    center = np.asarray(center, np.float64)
+    spacing = box_size(np.subtract(hi, lo)) / cfg.resolution
+    origin = center - radius - 2 * spacing
+    n = int(np.ceil((2 * radius + 4 * spacing) / spacing)) + 1
+    grid = origin + spacing * np.stack(np.meshgrid(*[np.arange(n)] * 3, indexing="ij"), axis=-1)
+    phi = np.linalg.norm(grid - center, axis=-1) - radius
+    k = np.arange(200) + 0.5  # a Fibonacci sphere
+    polar, azimuth = np.arccos(1 - 2 * k / 200), np.pi * (1 + 5 ** 0.5) * k
+    points = center + radius * np.stack([np.sin(polar) * np.cos(azimuth), np.cos(polar),
+                                         np.sin(polar) * np.sin(azimuth)], axis=1)
+    return FoundObstacle(phi, tuple(float(v) for v in origin), float(spacing), points,
+                         tuple(float(v) for v in center), float(radius), 0.0, 4 / 3 * np.pi * radius ** 3,
+                         (0.0,) * len(FACES), SOLID)
 
 
 def merge_with_declared(found: list[FoundObstacle], declared) -> list[FoundObstacle]:

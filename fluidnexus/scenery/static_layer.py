@@ -255,7 +255,8 @@ def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backd
         points.append(p)
         colors.append(c)
         spacing.append(s)
-        info["objects_at"] = [round(float(v), 6) for v in anchor]  # where this view's objects were placed
+        if len(p):
+            info["objects_at"] = [round(float(v), 6) for v in anchor]  # where this view's objects were placed
     means, spacing = np.concatenate(points).reshape(-1, 3), np.concatenate(spacing)
     quats = np.tile([1.0, 0.0, 0.0, 0.0], (len(means), 1))
     colors = np.concatenate(colors).reshape(len(means), plates[0].shape[-1])

@@ -14,7 +14,9 @@ two assumptions instead and fills the object's body with seeds from them:
   with the pixel's colour. From a camera turned about the plume the object then shows as wide as it is across,
   where the plume is; the input view's fit sets the colours and opacities it sees.
 
-Patches under ``min_pixels`` are left out (a plate's noise, not an object)."""
+``object_seeds`` fills each body with the static layer's seeds; ``object_balls`` gives the ball each stands for,
+a solid the gas flows around (``world.view_balls``). Patches under ``min_pixels`` are left out (a plate's noise,
+not an object)."""
 from __future__ import annotations
 
 import cv2
@@ -79,3 +81,24 @@ def object_seeds(camera, plate: np.ndarray, confidence: np.ndarray, fill: np.nda
     colors = np.asarray(plate, np.float64)[rows[pixel], cols[pixel]].reshape(len(pixel), -1)
     return points, colors, np.full(len(points), step)
 
+
+def object_balls(camera, plate: np.ndarray, confidence: np.ndarray, fill: np.ndarray, anchor, plain: float,
+                 min_pixels: int = MIN_PIXELS) -> list[tuple[np.ndarray, float]]:
+    """(centre [3], radius) of the ball each object patch of the view stands for (module docstring): centred on
+    the patch's axis at the anchor's depth, at the middle of its rows, as large as a ball that covers the patch's
+    area (radius ``sqrt(pixels / pi)`` pixels' footprint at that depth). Largest first; none when the anchor is
+    behind the camera."""
+    mask = object_mask(plate, confidence, fill, plain)
+    z0 = float(camera.project(np.asarray(anchor, np.float64)[None])[1][0])
+    if z0 <= 0 or not mask.any():
+        return []
+    count, labels = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)
+    metres_per_px = z0 / float(camera.K[0, 0])
+    balls = []
+    for label in range(1, count):
+        rows, cols = np.nonzero(labels == label)
+        if len(rows) < min_pixels:
+            continue
+        uv = np.array([[0.5 * (cols.min() + cols.max() + 1), 0.5 * (rows.min() + rows.max() + 1)]])
+        balls.append((camera.unproject(uv, np.array([z0]))[0], float(np.sqrt(len(rows) / np.pi)) * metres_per_px))
+    return sorted(balls, key=lambda b: -b[1])

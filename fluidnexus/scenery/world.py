@@ -18,12 +18,13 @@ import numpy as np
 
 from ..images import resize_image, to_channels
 from ..scene import Scene
-from .found_obstacles import find_obstacles, merge_with_declared, refine_balls
+from .found_obstacles import ball_obstacle, find_obstacles, merge_with_declared, refine_balls
 from .obstacles import engine_obstacle, join
 from ..video import read_video
 from .backdrop import smoke_mask
 from .plate_store import read_plate
 from .static_layer import STATIC_FILE, StaticConfig, fit_static, load_static
+from .view_objects import object_balls
 
 log = logging.getLogger("fluidnexus")
 
@@ -87,6 +88,17 @@ def view_anchor(scene: Scene) -> np.ndarray | None:
     return None
 
 
+def view_balls(scene: Scene, layer, cameras: list, plates: list, confidences: list) -> list:
+    """A single view's objects over a plain backdrop, where its layer placed them (``objects_at``), as solid balls
+    in the flow (``view_objects.object_balls``) whose centres lie inside the volume; none otherwise."""
+    if "objects_at" not in layer.info:
+        return []
+    lo, hi = scene.volume.min, scene.volume.max
+    balls = object_balls(cameras[0], plates[0], confidences[0], layer.background, layer.info["objects_at"],
+                         StaticConfig().plain)
+    return [ball_obstacle(c, r, lo, hi) for c, r in balls if np.all((c >= lo) & (c <= hi))]
+
+
 def fit_scenery(scene: Scene, declared: Scenery, cameras: dict, channels: int, iterations: int, seed: int,
                 frames: tuple[int, int], saved: Path | None = None) -> Scenery:
     """With plates: the static layer (read from ``saved``, a run's static.npz, when it exists; else fitted) and
@@ -110,7 +122,8 @@ def fit_scenery(scene: Scene, declared: Scenery, cameras: dict, channels: int, i
         log.info("static layer: %d Gaussians fitted to %d plates (loss %.4g)", len(layer), len(cams),
                  layer.info["loss"])
     found = find_obstacles(layer, cams, scene.volume.min, scene.volume.max, confidences=confidences, smoke=smoke)
-    found = merge_with_declared(refine_balls(found, layer, cams), declared.obstacle)
+    found = merge_with_declared(refine_balls(found, layer, cams) + view_balls(scene, layer, cams, plates, confidences),
+                                declared.obstacle)
     for body in found:
         log.info("obstacle found in the footage, a %s: centre %s, radius %.4g m, volume %.4g m^3; the gas %s",
                  body.kind, np.round(body.center, 4), body.radius, body.volume, body.gas())

@@ -1,6 +1,7 @@
 """A single view's objects over a plain backdrop: seeded at the smoke's depth as bodies round in plan
 (fluidnexus/scenery/view_objects.py), so a camera turned about them sees them in their place."""
 import numpy as np
+import pytest
 
 from fluidnexus.camera import Camera
 
@@ -79,3 +80,30 @@ def test_the_anchor_is_the_declared_source_else_synths_foot():
     assert np.allclose(view_anchor(SimpleNamespace(source=declared, views=[plain, foot])), [0.3, 0.1, -0.2])
     assert np.allclose(view_anchor(SimpleNamespace(source=None, views=[plain, foot])), [0.1, 0.0, 0.2])
     assert view_anchor(SimpleNamespace(source=None, views=[plain])) is None
+
+
+def test_a_patch_stands_for_a_ball_in_the_flow():
+    """The ball a patch stands for: centred on its axis at the anchor's depth, as large as the patch's area says;
+    as a found obstacle it is a sphere-like solid whose signed distance is the ball's."""
+    from fluidnexus.engine.obstacle import SphereObstacle
+    from fluidnexus.scenery.found_obstacles import SOLID, ball_obstacle
+    from fluidnexus.scenery.view_objects import object_balls
+
+    cam = Camera.look_at(40, 40, 44.0, (0.0, 0.5, 3.0), (0.0, 0.5, 0.0))
+    rows, cols = np.mgrid[0:40, 0:40]
+    disk = (cols + 0.5 - 20) ** 2 + (rows + 0.5 - 20) ** 2 <= 8 ** 2
+    small = (np.abs(cols + 0.5 - 33) <= 2) & (np.abs(rows + 0.5 - 8) <= 2)
+    plate = np.where((disk | small)[..., None], np.float32([0.2, 0.5, 0.9]), WHITE)
+    anchor = np.array([0.1, 0.3, 0.0])  # only its depth matters
+    balls = object_balls(cam, plate, np.ones((40, 40)), np.ones(3), anchor, 0.03)
+    metres_per_px = 3.0 / 44.0
+    assert len(balls) == 2 and balls[0][1] > balls[1][1]
+    (center, radius), _ = balls
+    np.testing.assert_allclose(center, [0.0, 0.5, 0.0], atol=0.5 * metres_per_px)
+    assert abs(radius - 8 * metres_per_px) <= 0.3 * metres_per_px
+    body = ball_obstacle(center, radius, (-1.0, 0.0, -1.0), (1.0, 1.0, 1.0))
+    assert body.kind == SOLID and body.sphere_like() and isinstance(body.engine_body(), SphereObstacle)
+    np.testing.assert_allclose(np.linalg.norm(body.points - center, axis=1), radius)
+    index = np.round((center - np.asarray(body.origin)) / body.spacing).astype(int)
+    assert body.phi[tuple(index)] == pytest.approx(-radius, abs=body.spacing)
+    assert body.phi.max() > 0 and body.volume == pytest.approx(4 / 3 * np.pi * radius ** 3)
