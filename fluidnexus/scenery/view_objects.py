@@ -32,13 +32,22 @@ def object_mask(plate: np.ndarray, confidence: np.ndarray, fill: np.ndarray, pla
     return differs & (np.asarray(confidence) >= 0.5)
 
 
-def _lattice(labels: np.ndarray, count: int, stride: int, metres_per_px: float, min_pixels: int):
+def _patches(camera, plate, confidence, fill, anchor, plain: float, min_pixels: int):
+    """(metres per pixel at the anchor's depth z0, z0, [(rows, cols)] of each patch of at least ``min_pixels``
+    object pixels), or None when the anchor is behind the camera or the view shows no object."""
+    mask = object_mask(plate, confidence, fill, plain)
+    z0 = float(camera.project(np.asarray(anchor, np.float64)[None])[1][0])
+    if z0 <= 0 or not mask.any():
+        return None
+    count, labels = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)
+    patches = [np.nonzero(labels == label) for label in range(1, count)]
+    return z0 / float(camera.K[0, 0]), z0, [(r, c) for r, c in patches if len(r) >= min_pixels]
+
+
+def _lattice(patches: list, stride: int, metres_per_px: float):
     """Per ``stride``-th object pixel of every patch: (column, row, half-depth of the body there in metres)."""
     out = []
-    for label in range(1, count):
-        rows, cols = np.nonzero(labels == label)
-        if len(rows) < min_pixels:
-            continue
+    for rows, cols in patches:
         axis = 0.5 * (cols.min() + cols.max() + 1)  # the patch's middle column (pixel edges)
         for row in np.unique(rows[rows % stride == 0]):
             in_row = cols[rows == row]
@@ -57,18 +66,16 @@ def object_seeds(camera, plate: np.ndarray, confidence: np.ndarray, fill: np.nda
     docstring) on a lattice of ``stride`` pixels' footprint at the axis's depth, across the image and in depth,
     each seed with its pixel's colour; the stride is the smallest that keeps N within ``budget``, and ``spacing``
     is the lattice's. Nothing when the anchor is behind the camera."""
-    mask = object_mask(plate, confidence, fill, plain)
-    z0 = float(camera.project(np.asarray(anchor, np.float64)[None])[1][0])
     empty = (np.zeros((0, 3)), np.zeros((0, plate.shape[-1])), np.zeros(0))
-    if z0 <= 0 or not mask.any():
+    found = _patches(camera, plate, confidence, fill, anchor, plain, min_pixels)
+    if found is None:
         return empty
-    count, labels = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)
-    metres_per_px = z0 / float(camera.K[0, 0])
+    metres_per_px, z0, patches = found
     stride = 0
     while True:  # the seeds fall as the stride's cube
         stride += 1
         step = stride * metres_per_px
-        cols, rows, depth = _lattice(labels, count, stride, metres_per_px, min_pixels)
+        cols, rows, depth = _lattice(patches, stride, metres_per_px)
         layers = np.floor(depth / step).astype(int)  # seeds at k * step in front of and behind the axis
         if int((2 * layers + 1).sum()) <= budget:
             break
@@ -88,17 +95,12 @@ def object_balls(camera, plate: np.ndarray, confidence: np.ndarray, fill: np.nda
     the patch's axis at the anchor's depth, at the middle of its rows, as large as a ball that covers the patch's
     area (radius ``sqrt(pixels / pi)`` pixels' footprint at that depth). Largest first; none when the anchor is
     behind the camera."""
-    mask = object_mask(plate, confidence, fill, plain)
-    z0 = float(camera.project(np.asarray(anchor, np.float64)[None])[1][0])
-    if z0 <= 0 or not mask.any():
+    found = _patches(camera, plate, confidence, fill, anchor, plain, min_pixels)
+    if found is None:
         return []
-    count, labels = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)
-    metres_per_px = z0 / float(camera.K[0, 0])
+    metres_per_px, z0, patches = found
     balls = []
-    for label in range(1, count):
-        rows, cols = np.nonzero(labels == label)
-        if len(rows) < min_pixels:
-            continue
+    for rows, cols in patches:
         uv = np.array([[0.5 * (cols.min() + cols.max() + 1), 0.5 * (rows.min() + rows.max() + 1)]])
         balls.append((camera.unproject(uv, np.array([z0]))[0], float(np.sqrt(len(rows) / np.pi)) * metres_per_px))
     return sorted(balls, key=lambda b: -b[1])
