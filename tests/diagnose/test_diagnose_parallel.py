@@ -16,6 +16,7 @@ from fluidnexus.memory import RUNTIME_BYTES
 from .eulerian_plume import Grid, PlumeEffects, simulate, write_scene
 
 
+@pytest.mark.slow  # two in-process diagnoses: 101 s in the suite (2026-11-27)
 def test_jobs_do_not_change_the_report(template, tmp_path, ti_engine):
     """A short windy plume around a declared ball diagnosed with one process and with two: report.json and
     model.json are identical (same rollouts, the same ball built in each worker, same fits, the search spread over
