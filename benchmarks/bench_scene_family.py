@@ -36,7 +36,9 @@ unless every preparation step of an earlier run succeeded (W/seedN/PROTOCOL/prep
 ``--rescore`` computes the scores again from the runs and eval.json files already in W (steps not re-run, their
 timings kept; failed rows stay as they are). Results go to W/results/seedN-PROTOCOL.json (kept, so the development
 and held-out halves can be run separately into the same W), W/table.json and W/table.md (every row, then the two
-halves' means side by side).
+halves' means side by side, then NVS by backdrop kind in each half and both halves over the kinds they share, weighted
+by the development half's mix: the halves drew different mixes, and only the gap between like scenes measures
+tuning).
 Held-out seeds are refused unless ``--held-out`` is given (docs/scene-family.md: they are run only to fill the table).
 """
 from __future__ import annotations
@@ -262,6 +264,39 @@ def means_table(summary: dict) -> str:
     return "\n".join(lines)
 
 
+
+def by_backdrop(results: list) -> dict:
+    """Per protocol: NVS PSNR means by backdrop kind in each split, and both splits' means over the kinds they
+    share, each kind weighted by its count in the development half (the halves drew different mixes of backdrops:
+    a gap that remains between like scenes is the measure of tuning, a gap from the mix is not)."""
+    out = {}
+    for protocol in PROTOCOLS:
+        rows = [r for r in results if r["protocol"] == protocol and "error" not in r]
+        kinds = sorted({r["scene"]["backdrop"] for r in rows})
+        per = {k: {split: [r["nvs"]["psnr"] for r in rows if r["split"] == split and r["scene"]["backdrop"] == k]
+                   for split in SPLITS} for k in kinds}
+        shared = [k for k in kinds if all(per[k][split] for split in SPLITS)]
+        weight = {k: len(per[k]["development"]) for k in shared}
+        matched = {split: (float(sum(weight[k] * np.mean(per[k][split]) for k in shared) / sum(weight.values()))
+                           if shared else None) for split in SPLITS}
+        out[protocol] = {"kinds": {k: {split: {"scenes": len(v), "nvs_psnr": float(np.mean(v)) if v else None}
+                                       for split, v in per[k].items()} for k in kinds},
+                         "shared_kinds": shared, "matched_nvs_psnr": matched}
+    return out
+
+
+def backdrop_table(summary: dict) -> str:
+    lines = []
+    for protocol, s in summary.items():
+        lines += [f"| {protocol}: NVS PSNR by backdrop | " + " | ".join(SPLITS) + " |", "|---|---|---|"]
+        for kind, cells in s["kinds"].items():
+            lines.append(f"| {kind} | " + " | ".join(
+                f"{fmt(cells[split]['nvs_psnr'])} ({cells[split]['scenes']})" for split in SPLITS) + " |")
+        lines.append(f"| shared kinds ({', '.join(s['shared_kinds'])}), the development half's mix | " + " | ".join(
+            fmt(s["matched_nvs_psnr"][split]) for split in SPLITS) + " |")
+        lines.append("")
+    return "\n".join(lines)
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--work", type=Path, required=True)
@@ -302,10 +337,12 @@ def main() -> None:
     results = [json.loads(p.read_text()) for p in sorted((args.work / "results").glob("*.json"))]
     ok = [r for r in results if "error" not in r]
     failed = [f"- seed {r['seed']} {r['protocol']}: {r['error']}" for r in results if "error" in r]
-    summary = means(results)
-    (args.work / "table.json").write_text(json.dumps({"rows": results, "means": summary}, indent=1))
+    summary, backdrops = means(results), by_backdrop(results)
+    (args.work / "table.json").write_text(json.dumps({"rows": results, "means": summary, "by_backdrop": backdrops},
+                                                     indent=1))
     text = (table(ok) + "\n\n" + ("Failed:\n" + "\n".join(failed) + "\n\n" if failed else "")
-            + "Means (development | held-out):\n\n" + means_table(summary))
+            + "Means (development | held-out):\n\n" + means_table(summary)
+            + "\nBy backdrop (scenes in brackets):\n\n" + backdrop_table(backdrops))
     (args.work / "table.md").write_text(text + "\n")
     print(text)
 

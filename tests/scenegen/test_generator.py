@@ -197,3 +197,26 @@ def test_table_refuses_held_out_seeds_without_the_flag(tmp_path):
                                str(tmp_path / "w"), *extra], capture_output=True, text=True, cwd=root)
         assert proc.returncode != 0 and "held out" in proc.stderr, proc.stderr
         assert not (tmp_path / "w").exists()
+
+
+def test_table_compares_the_halves_on_the_backdrops_they_share():
+    """by_backdrop weights each backdrop kind the halves share by its count in the development half: a held-out
+    half that drew more of an easy kind scores the same as a development half whose like scenes score the same."""
+    from benchmarks.bench_scene_family import backdrop_table, by_backdrop
+
+    def row(seed, split, kind, psnr):
+        return {"seed": seed, "split": split, "protocol": "four-view", "scene": {"backdrop": kind},
+                "nvs": {"psnr": psnr}}
+
+    rows = [row(1, "development", "black", 30.0), row(2, "development", "white", 20.0),
+            row(3, "development", "set", 10.0),
+            row(7301, "held-out", "black", 30.0), row(7302, "held-out", "black", 30.0),
+            row(7303, "held-out", "black", 30.0), row(7304, "held-out", "white", 20.0),
+            {"seed": 7305, "split": "held-out", "protocol": "four-view", "error": "refused"}]
+    s = by_backdrop(rows)["four-view"]
+    assert s["shared_kinds"] == ["black", "white"]
+    assert s["matched_nvs_psnr"] == {"development": 25.0, "held-out": 25.0}
+    assert s["kinds"]["set"]["held-out"] == {"scenes": 0, "nvs_psnr": None}
+    assert s["kinds"]["black"]["held-out"] == {"scenes": 3, "nvs_psnr": 30.0}
+    assert "| shared kinds (black, white), the development half's mix | 25.00 | 25.00 |" in backdrop_table(
+        by_backdrop(rows))
