@@ -62,29 +62,3 @@ def visual_hull(cameras: tuple[Camera, ...], images: np.ndarray, volume: Volume,
             inside &= smoke  # a voxel outside a view's image cannot be confirmed as smoke: it is carved
         kept.append(pts[inside])
     return Hull(np.concatenate(kept), voxel)
-
-
-def smoke_centre(cameras: tuple[Camera, ...], images: np.ndarray, threshold: float = 0.05,
-                 backdrops=None) -> np.ndarray | None:
-    """[3] the point nearest (least squares) to every view's ray through the centroid of its smoke pixels (those
-    ``smoke_mask`` finds, each weighted by how far it is from what the view sees behind it), or None where fewer
-    than two views show smoke. Unlike a hull's centroid it has no carving ghosts: a small or thin puff seen by four
-    cameras has a hull stretched along their rays, whose centroid lies off the smoke's."""
-    backdrops = [None] * len(images) if backdrops is None else backdrops
-    normal, rhs, views = np.zeros((3, 3)), np.zeros(3), 0
-    for cam, image, backdrop in zip(cameras, images, backdrops):
-        behind = 0.0 if backdrop is None else np.asarray(backdrop, image.dtype)
-        diff = np.abs(image - behind).max(axis=2).astype(np.float64)
-        diff[diff <= threshold] = 0.0
-        if not diff.any():
-            continue
-        rows, cols = np.nonzero(diff)
-        w = diff[rows, cols]
-        uv = np.array([(cols + 0.5) @ w, (rows + 0.5) @ w, w.sum()]) / w.sum()
-        ray = cam.R.T @ np.linalg.solve(cam.K, uv)
-        ray /= np.linalg.norm(ray)
-        across = np.eye(3) - np.outer(ray, ray)
-        normal += across
-        rhs += across @ cam.center
-        views += 1
-    return np.linalg.lstsq(normal, rhs, rcond=None)[0] if views >= 2 else None

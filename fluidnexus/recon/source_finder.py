@@ -5,12 +5,10 @@ from the first frames with smoke, across every usable view, through multi-view v
 (``hull.visual_hull``):
 
 1. The earliest frame t0 of the run's range whose hull holds smoke (at least ``MIN_POINTS`` voxels).
-2. The way the smoke moves: the smoke's centre in each of the next ``FOLLOW_FRAMES`` frames, and in further ones
-   up to ``FOLLOW_MAX`` until it has moved a coarse voxel (``FOLLOW_COARSENING`` hull voxels; slow smoke in a large
-   volume, e.g. Sphere); the least-squares slope of that centre over time gives the direction. The centre is
-   triangulated from the views' own smoke centroids (``hull.smoke_centre``), not taken from the hull: a small
-   early puff's hull is stretched along the cameras' rays, and its centroid wandered across the jet as the puff
-   grew (on generated jets 4-66 degrees off, 23 on average; 8-42, 20 on average, from the views' centroids). Buoyancy makes every plume drift up in the end, but over the first
+2. The way the smoke moves: the hull of each of the next ``FOLLOW_FRAMES`` frames (on a grid ``FOLLOW_COARSENING``
+   times coarser, to keep the search cheap), and of further ones up to ``FOLLOW_MAX`` until the smoke has moved a
+   coarse voxel (slow smoke in a large volume, e.g. Sphere); the least-squares slope of the hull centroid over
+   time gives the direction. Buoyancy makes every plume drift up in the end, but over the first
    frames a jet moves the way it was blown. Without a measurable motion (less than one hull voxel over the frames)
    the direction is up.
 3. The position: the foot of the earliest smoke along that direction, i.e. the centre of the hull's slab of
@@ -33,7 +31,7 @@ import numpy as np
 
 from ..engine.emitter import UP, rotation_from_up
 from ..scene import Scene, Source
-from .hull import smoke_centre, visual_hull
+from .hull import visual_hull
 
 MIN_POINTS = 8
 FOLLOW_FRAMES = 8
@@ -101,10 +99,9 @@ def find_source(scene: Scene, obs, voxel: float, slab: float, fallback: Source, 
     if scene.volume is None:
         return FoundSource(fallback, np.zeros((0, 3)), {"method": "no volume: the scene's source or its default"})
 
-    backdrops = [b.background for b in obs.behind] or None
-
     def hull(t: int, coarsening: int = 1) -> np.ndarray:
-        points = visual_hull(obs.cameras, obs.frame(t), scene.volume, voxel * coarsening, backdrops=backdrops).points
+        points = visual_hull(obs.cameras, obs.frame(t), scene.volume, voxel * coarsening,
+                             backdrops=[b.background for b in obs.behind] or None).points
         return points if obstacle is None or not len(points) else points[obstacle.distance(points) > 0]
 
     seeds = hull(first)
@@ -127,18 +124,16 @@ def find_source(scene: Scene, obs, voxel: float, slab: float, fallback: Source, 
         return FoundSource(fallback, seeds, {"method": "fallback: no smoke in any frame of the run",
                                              "source": fallback.to_dict()})
     coarse = voxel * FOLLOW_COARSENING
-    times, hulls, centres = [], [], []
+    times, hulls = [], []
     velocity, moved = np.zeros(3), 0.0
     for t in range(t0, min(last, t0 + 1 + FOLLOW_MAX)):
         h = hull(t, FOLLOW_COARSENING)
-        centre = smoke_centre(obs.cameras, obs.frame(t), backdrops=backdrops) if len(h) >= MIN_POINTS else None
-        if centre is not None:
+        if len(h) >= MIN_POINTS:
             times.append(t)
             hulls.append(h)
-            centres.append(centre)
         if len(times) >= 2:
             tt = np.asarray(times, dtype=np.float64)
-            velocity = _slope(tt, np.stack(centres))  # m per frame
+            velocity = _slope(tt, np.stack([p.mean(axis=0) for p in hulls]))  # m per frame
             moved = float(np.linalg.norm(velocity) * (tt[-1] - tt[0]))
         if t - t0 >= FOLLOW_FRAMES and moved >= coarse:
             break
