@@ -4,11 +4,11 @@ Each test hides one effect (or two) at a magnitude drawn from a seeded range, ru
 0:32, validate 32:48; the burst 90 frames, 0:60 and 60:90) and requires the right name. Each diagnose fits both
 model structures and tries the candidates on the paper's gas and, where the air passes, on the air too, its fits
 side by side in as many processes as there are cores (``--jobs``, at most 6): 36-51 s each on the idle 2-core VM,
-the wind's (20 evaluations) 100 s; this file's fast tier 284 s (2026-11-27; 347 s on 2026-11-26); on the slower VM of
-the afternoon of 2026-11-27 a diagnose took 100-125 s alone. ``make test`` runs the fast tier (the plain plume, the
+the wind's (20 evaluations) 100 s; this file's fast tier 284 s (2026-11-27; 347 s on 2026-11-26); on a slower VM
+later on 2026-11-27 a diagnose took 100-125 s alone. ``make test`` runs the fast tier (the plain plume, the
 paper's-gas control, entrainment in the paper's gas, dissipation) and the visibility test; ``make test-slow`` runs
-the rest (the wind among them: 260 s in the suite's two workers). Buoyancy decay, vorticity confinement, viscosity and swirl are
-``xfail``: their data differ from a plain plume with the same generator constants
+the rest (the wind among them: 260 s in the suite's two workers). Buoyancy decay, vorticity confinement, viscosity
+and swirl are ``xfail``: their data differ from a plain plume with the same generator constants
 (``test_hidden_effects_are_visible``), but diagnose does not name them. Buoyancy decay cannot be named from this
 footage by any model: a plain plume with weaker buoyancy matches its training frames
 (``test_nearest_plain_plume_on_the_training_frames``). In a burst (the source on for the first part of the window
