@@ -18,9 +18,8 @@ $(STAMP): setup.cfg setup.py pyproject.toml
 demo: $(STAMP)
 	$(BIN)/fluidnexus demo --overwrite
 
-# the fast tier (CI) in two pytest workers, a test file each at a time (its tests are mostly single-threaded: 15 min
-# instead of 23 on the 2-core VM); the slow tier (tests marked slow: full diagnoses, memory peaks, long runs) with
-# test-slow
+# the fast tier (CI) in two pytest workers, a test file each at a time (README, "Tests", has its measured time); the
+# slow tier (tests marked slow: full diagnoses, memory peaks, long runs) with test-slow
 test: $(STAMP)
 	$(BIN)/python -m pytest -q -m "not slow" -n 2 --dist loadfile $(PYTEST_ARGS)
 
