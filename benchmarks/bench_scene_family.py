@@ -264,7 +264,6 @@ def means_table(summary: dict) -> str:
     return "\n".join(lines)
 
 
-
 def by_backdrop(results: list) -> dict:
     """Per protocol: NVS PSNR means by backdrop kind in each split, and both splits' means over the kinds they
     share, each kind weighted by its count in the development half (the halves drew different mixes of backdrops:
@@ -296,6 +295,7 @@ def backdrop_table(summary: dict) -> str:
             fmt(s["matched_nvs_psnr"][split]) for split in SPLITS) + " |")
         lines.append("")
     return "\n".join(lines)
+
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])

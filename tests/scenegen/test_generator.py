@@ -213,10 +213,10 @@ def test_table_compares_the_halves_on_the_backdrops_they_share():
             row(7301, "held-out", "black", 30.0), row(7302, "held-out", "black", 30.0),
             row(7303, "held-out", "black", 30.0), row(7304, "held-out", "white", 20.0),
             {"seed": 7305, "split": "held-out", "protocol": "four-view", "error": "refused"}]
-    s = by_backdrop(rows)["four-view"]
+    summary = by_backdrop(rows)
+    s = summary["four-view"]
     assert s["shared_kinds"] == ["black", "white"]
     assert s["matched_nvs_psnr"] == {"development": 25.0, "held-out": 25.0}
     assert s["kinds"]["set"]["held-out"] == {"scenes": 0, "nvs_psnr": None}
     assert s["kinds"]["black"]["held-out"] == {"scenes": 3, "nvs_psnr": 30.0}
-    assert "| shared kinds (black, white), the development half's mix | 25.00 | 25.00 |" in backdrop_table(
-        by_backdrop(rows))
+    assert "| shared kinds (black, white), the development half's mix | 25.00 | 25.00 |" in backdrop_table(summary)
