@@ -22,6 +22,11 @@ MIN_RELATIVE_GAIN = 0.20
 MAX_P_VALUE = 0.01
 #: Where the paper's gas's base fit starts (log(-alpha), log(k), log(layers)) and its first steps.
 BASE_START, BASE_STEPS = [float(np.log(0.3)), float(np.log(3.0)), float(np.log(10.0))], [0.8, 0.6, 0.5]
+#: The paper's gas's base search starts again from where it stopped with this share of its budget: on the ScalarFlow
+#: capture with the source 1.7 cm from the declared one it had stalled next to its start (training error 0.543,
+#: the plume's front 0.3 m too high), and a term whose search starts afresh (entrainment) then gained 54 % against
+#: that control; the restart reached 0.263 (BENCHMARKS.md, "A base fit that stalls").
+RESTART_SHARE = 0.5
 #: Where the entrainment search starts its coefficient: the middle of the plumes' range (engine/entrainment.py);
 #: its first step in log(coefficient) (x 1.5).
 ENTRAINMENT_START, ENTRAINMENT_STEP = 0.1, 0.4
@@ -123,19 +128,29 @@ class Fitter:
 def fit_base(fitter: Fitter, maxfev: int, structure: str = "paper_gas") -> Fit:
     """Step 1: the base model of a structure, searched in log space, the gain in closed form.
 
-    paper_gas: buoyancy alpha, drag k and the source rate (layers per second). ambient_air: buoyancy alpha, XSPH
-    c (at most 1) and the inlet speed, from the measured prototype's hand fit (alpha -0.15, c 0.4, 0.3 m/s)."""
+    paper_gas: buoyancy alpha, drag k and the source rate (layers per second), from ``BASE_START``; then the search
+    starts again from where it stopped, with the first steps and :data:`RESTART_SHARE` of the budget (the base
+    is the control of every term, so it must not stop where Nelder-Mead stalled). ambient_air: buoyancy alpha,
+    XSPH c (at most 1) and the inlet speed, from the measured prototype's hand fit (alpha -0.15, c 0.4, 0.3 m/s)."""
     if structure == "ambient_air":
         return fitter.minimise(lambda x: PlumeParams(alpha=-float(np.exp(x[0])), c=float(min(np.exp(x[1]), 1.0)),
                                                      inflow=float(np.exp(x[2])), structure="ambient_air"),
                                [np.log(0.15), np.log(0.4), np.log(0.3)], [0.6, 0.5, 0.3], maxfev)
-    return fitter.minimise(lambda x: PlumeParams(alpha=-float(np.exp(x[0])), k=float(np.exp(x[1])),
-                                                 layers=float(np.exp(x[2]))), BASE_START, BASE_STEPS, maxfev)
+
+    def make(x):
+        return PlumeParams(alpha=-float(np.exp(x[0])), k=float(np.exp(x[1])), layers=float(np.exp(x[2])))
+
+    first = fitter.minimise(make, BASE_START, BASE_STEPS, maxfev)
+    p = first.params
+    again = fitter.minimise(make, [np.log(-p.alpha), np.log(p.k), np.log(p.layers)], BASE_STEPS,
+                            round(RESTART_SHARE * maxfev))
+    return again if fitter.train_error(again) < fitter.train_error(first) else first
 
 
 def fit_structure(fitter: Fitter, structure: str, maxfev: int) -> tuple[Fit, Fit]:
-    """Steps 1 and 2 for one structure: its base model (:func:`fit_base`, 2 x ``maxfev`` rollouts) and the control
-    refit from there (alpha alone, ``maxfev`` rollouts; :func:`fit_candidate` with no extension)."""
+    """Steps 1 and 2 for one structure: its base model (:func:`fit_base`, 2 x ``maxfev`` rollouts, and ``maxfev``
+    more for the paper's gas's restart) and the control refit from there (alpha alone, ``maxfev`` rollouts;
+    :func:`fit_candidate` with no extension)."""
     base = fit_base(fitter, 2 * maxfev, structure)
     return base, fit_candidate(fitter, base, None, maxfev)
 
