@@ -97,8 +97,9 @@ def test_balls_are_refitted_to_their_silhouettes(ti_engine):
     layer = fit_static(cameras, plates, [np.ones(p.shape[:2], np.float32) for p in plates], LO, HI,
                        StaticConfig(iterations=200, seed=3))
     off = BALL_CENTER + 0.15 * BALL_RADIUS * np.array([0.6, -0.64, 0.48])
+    carved = 4 / 3 * np.pi * (1.15 * BALL_RADIUS) ** 3  # the body the finder carved around it
     guess = FoundObstacle(np.zeros((2, 2, 2)), (0.0, 0.0, 0.0), 0.1, np.zeros((40, 3)), tuple(off),
-                          1.15 * BALL_RADIUS, 0.0, 1.0, (0.0,) * 6, "solid")
+                          1.15 * BALL_RADIUS, 0.0, carved, (0.0,) * 6, "solid")
     ball = refine_balls([guess], layer, cameras)[0]
     assert ball.sphere_like()
     assert np.linalg.norm(np.asarray(ball.center) - BALL_CENTER) <= 0.05 * BALL_RADIUS, ball.center
@@ -246,3 +247,25 @@ def test_seeds_without_a_depth_lie_beyond_every_camera():
     reach = max(float(np.linalg.norm(c.center - 0.5 * (lo + hi))) for c in near)
     assert shell_radius(near, lo, hi, StaticConfig()) == pytest.approx(1.5 * reach)
     assert shell_radius(near, lo, hi, StaticConfig()) > 2.0 * half
+
+
+def test_a_flat_patch_of_surface_is_not_a_ball():
+    """A small body whose surface points lie on a gently curved patch (as a stair's face or a figure's flank shows
+    them) fits a sphere of any radius with no residual; on PINF's Game such fits made balls of 3.4 m for bodies of
+    0.03 m^3, which swallowed the carved bodies around them. A ball stands for a body only when their volumes
+    match; a ball of the body's own size still does."""
+    from fluidnexus.engine.obstacle import GridObstacle
+    from fluidnexus.scenery.found_obstacles import SOLID, FoundObstacle, ball_fits, fit_sphere
+
+    u, v = np.meshgrid(np.linspace(-0.1, 0.1, 12), np.linspace(-0.1, 0.1, 12))
+    big = 3.0  # the patch is a piece of a 3 m sphere
+    patch = np.stack([u.ravel(), v.ravel(), np.sqrt(big ** 2 - u.ravel() ** 2 - v.ravel() ** 2) - big], axis=1)
+    center, radius, rms = fit_sphere(patch)
+    assert abs(radius - big) < 0.01 and rms < 1e-6 * radius  # the residual test alone would take it
+    carved = 0.2 * 0.2 * 0.05
+    body = FoundObstacle(-np.ones((2, 2, 2)), (0.0, 0.0, 0.0), 0.05, patch, tuple(center), radius, rms, carved,
+                         (0.0,) * 6, SOLID)
+    assert not body.sphere_like()
+    assert isinstance(body.engine_body(), GridObstacle) and "carved body" in body.gas()
+    own = (3 * carved / (4 * np.pi)) ** (1 / 3)
+    assert ball_fits(own, carved) and not ball_fits(0.01 * own, carved)
