@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks.cli_steps import timed_command  # noqa: E402
+from benchmarks.cli_steps import pinf_pipeline, timed_command  # noqa: E402
 
 BALL_CENTER, BALL_RADIUS = np.array([-0.0224, 0.1662, -0.0553]), 0.4242
 VIEWS = ("train00", "train01", "train02", "train03", "train04")
@@ -58,21 +58,11 @@ def main() -> None:
     args = parser.parse_args()
     work = args.work
     work.mkdir(parents=True, exist_ok=True)
-    log, scene, runs = work / "log.txt", work / "scene", work / "run"
-    steps = {}
-    if not (scene / "scene.json").exists():
-        steps["calibrate"] = timed_command(["calibrate", "--from-pinf", args.data / "info.json", "--input",
-                                            ",".join(VIEWS), "--ground-truth", ",".join(HELD_OUT), "--out", scene], log)
-    if not (scene / "backgrounds").exists():
-        steps["background"] = timed_command(["background", scene], log)
-    resume = ["--resume"] if (runs / "config.json").exists() else []
-    steps["recon"] = timed_command(["recon", scene, "--out", runs, "--frames", args.frames, "--resolution",
-                                    args.resolution, "--arch", "cpu", *resume, *args.recon], log)
-    steps["eval"] = timed_command(["eval", runs, "--json", work / "eval.json", "--arch", "cpu"], log)
-    steps["render"] = timed_command(["render", runs, "--out", work / "videos", "--views", ",".join(HELD_OUT),
-                                     "--compare", "--arch", "cpu"], log)
+    scene, runs = work / "scene", work / "run"
+    steps = pinf_pipeline(args.data, work, list(VIEWS), list(HELD_OUT), args.frames,
+                          ["--resolution", args.resolution, *args.recon])
     steps["render_black"] = timed_command(["render", runs, "--out", work / "smoke", "--views", ",".join(HELD_OUT),
-                                           "--background", "black", "--alpha", "--arch", "cpu"], log)
+                                           "--background", "black", "--alpha", "--arch", "cpu"], work / "log.txt")
     scores = json.loads((work / "eval.json").read_text())
     start, stop = scores["frames"]
     info = json.loads((runs / "run.json").read_text())
