@@ -89,8 +89,12 @@ class FoundObstacle:
     contact: tuple[float, ...]
     kind: str
 
-    def sphere_like(self, tolerance: float = FinderConfig.sphere_rms) -> bool:
-        return self.kind == SOLID and self.rms <= tolerance * self.radius and ball_fits(self.radius, self.volume)
+    def sphere_like(self, tolerance: float = FinderConfig.sphere_rms,
+                    share: tuple[float, float] = FinderConfig.ball_share) -> bool:
+        """A solid whose fitted ball lies within ``tolerance`` of its surface (rms, relative to the radius) and
+        matches its volume (:func:`ball_fits`)."""
+        return (self.kind == SOLID and self.rms <= tolerance * self.radius
+                and ball_fits(self.radius, self.volume, share))
 
     def engine_body(self, tolerance: float = FinderConfig.sphere_rms):
         """The engine's one-way coupling body: the fitted ball when sphere-like, else the carved grid."""
@@ -255,9 +259,9 @@ def refine_balls(found: list[FoundObstacle], layer: StaticLayer, cameras,
     """``found`` with every body that the layer's silhouettes show as a ball refitted to them: in each of
     ``cameras`` the object mask is the matte of the layer's Gaussians inside its volume (drawn alone, alpha at least
     0.5); where the rays through the outlines around the body's projected centre graze one ball within
-    ``cfg.sphere_rms`` of its radius (rms), the body becomes that ball (its ``rms`` the silhouettes' residual, so it
-    is sphere-like); other bodies keep the layer's sphere and grid. Bodies whose centre lies inside an earlier
-    (larger) refitted ball are parts of it and are dropped."""
+    ``cfg.sphere_rms`` of its radius (rms) and matches the body's volume (:func:`ball_fits`), the body becomes that
+    ball (its ``rms`` the silhouettes' residual, so it is sphere-like); other bodies keep the layer's sphere and
+    grid. Bodies whose centre lies inside an earlier (larger) refitted ball are parts of it and are dropped."""
     inner = inside_volume(layer)
     mattes = [render_static(inner, cam)[1].numpy() >= 0.5 for cam in cameras]
     out = []
@@ -265,8 +269,8 @@ def refine_balls(found: list[FoundObstacle], layer: StaticLayer, cameras,
         if body.kind == BOUNDARY:
             out.append(body)
             continue
-        if any(b.sphere_like(cfg.sphere_rms) and np.linalg.norm(np.subtract(body.center, b.center)) < b.radius
-               for b in out):
+        if any(b.sphere_like(cfg.sphere_rms, cfg.ball_share)
+               and np.linalg.norm(np.subtract(body.center, b.center)) < b.radius for b in out):
             continue
         rays = [silhouette_rays(cam, matte, np.asarray(body.center), body.radius)
                 for cam, matte in zip(cameras, mattes)]
@@ -274,8 +278,9 @@ def refine_balls(found: list[FoundObstacle], layer: StaticLayer, cameras,
         if len(origins) >= cfg.min_points:
             center, radius, rms = fit_ball_to_rays(origins, np.concatenate([r[1] for r in rays]),
                                                    np.asarray(body.center), body.radius)
-            if rms <= cfg.sphere_rms * radius and ball_fits(radius, body.volume, cfg.ball_share):
-                body = replace(body, center=tuple(float(v) for v in center), radius=radius, rms=rms)
+            ball = replace(body, center=tuple(float(v) for v in center), radius=radius, rms=rms)
+            if ball.sphere_like(cfg.sphere_rms, cfg.ball_share):
+                body = ball
         out.append(body)
     return out
 
