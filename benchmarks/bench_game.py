@@ -24,6 +24,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.cli_steps import pinf_pipeline  # noqa: E402
+from benchmarks.references import held_still_scores  # noqa: E402
 
 PROTOCOLS = {"fixed": (("train00", "train01", "train03", "train05", "train06"), ("train02",)),
              "pinf": (("train00", "train01", "train02", "train03", "train05", "train06"), ("test00",))}
@@ -32,18 +33,15 @@ PROTOCOLS = {"fixed": (("train00", "train01", "train03", "train05", "train06"), 
 def references(scene: Path, frames: slice, size: tuple[int, int]) -> dict:
     """Per held-out view: PSNR / SSIM of black, of the true frame 0 held still and of the true video's temporal
     median (module docstring), RGB at ``size`` (width, height)."""
-    from fluidnexus.metrics import psnr, ssim
     from fluidnexus.scene import load_ground_truth
     from fluidnexus.video import read_video
 
     out = {}
     for gt in load_ground_truth(scene):
         video = read_video(scene / gt.video, frames=frames, size=size, channels=3)
-        refs = {"black": np.zeros_like(video[0]), "frame0_held": video[0],
-                "temporal_median": np.median(video, axis=0).astype(video.dtype)}
-        out[gt.name] = {k: {"psnr": float(np.mean([psnr(ref, f) for f in video if not np.array_equal(ref, f)])),
-                            "ssim": float(np.mean([ssim(ref, f) for f in video]))}
-                        for k, ref in refs.items()}
+        first = read_video(scene / gt.video, frames=slice(0, 1), size=size, channels=3)[0]
+        out[gt.name] = held_still_scores(video, {"black": np.zeros_like(first), "frame0_held": first,
+                                                 "temporal_median": np.median(video, axis=0).astype(video.dtype)})
     return out
 
 

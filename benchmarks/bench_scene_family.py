@@ -58,6 +58,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from benchmarks.cli_steps import timed_command  # noqa: E402
+from benchmarks.references import held_still_scores  # noqa: E402
 from benchmarks.scenes import HELD_OUT, SIZES, check_seeds, generate, split_of  # noqa: E402
 from benchmarks.scenes.splits import SPLITS, HeldOutError  # noqa: E402
 
@@ -70,19 +71,13 @@ REFUSED = "floor_refused.txt"  # synth's refusal with the default floor, where t
 def references(scene: Path, frames: tuple, size: tuple, channels: int) -> dict:
     """PSNR / SSIM of an all-black image and of the true frame 0 held still against test00 over ``frames``, read
     as eval reads it (resized to the run's ``size`` (width, height), the run's ``channels``)."""
-    from fluidnexus.metrics import psnr, ssim
     from fluidnexus.scene import load_ground_truth
     from fluidnexus.video import read_video
 
     gt = next(g for g in load_ground_truth(scene) if g.name == HELD_OUT)
     video = read_video(scene / gt.video, frames=slice(*frames), size=size, channels=channels)
     first = read_video(scene / gt.video, frames=slice(0, 1), size=size, channels=channels)[0]
-    out = {}
-    for key, ref in (("black", np.zeros_like(first)), ("frame0_held", first)):
-        scores = [psnr(ref, f) for f in video if not np.array_equal(ref, f)]
-        out[key] = {"psnr": float(np.mean(scores)) if scores else math.inf,
-                    "ssim": float(np.mean([ssim(ref, f) for f in video]))}
-    return out
+    return held_still_scores(video, {"black": np.zeros_like(first), "frame0_held": first})
 
 
 def source_score(found: dict, true: dict, length: float) -> dict:

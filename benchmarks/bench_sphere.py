@@ -22,6 +22,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.cli_steps import pinf_pipeline, timed_command  # noqa: E402
+from benchmarks.references import held_still_scores  # noqa: E402
 
 BALL_CENTER, BALL_RADIUS = np.array([-0.0224, 0.1662, -0.0553]), 0.4242
 VIEWS = ("train00", "train01", "train02", "train03", "train04")
@@ -31,7 +32,6 @@ HELD_OUT = ("test02", "test04")
 def references(scene: Path, frames: slice) -> dict:
     """Per held-out view: PSNR / SSIM of a white image and of the true frame 0 held still (mean per-frame PSNR as
     eval computes it, over the frames the reference does not equal exactly)."""
-    from fluidnexus.metrics import psnr, ssim
     from fluidnexus.scene import load_ground_truth
     from fluidnexus.video import read_video
 
@@ -41,10 +41,7 @@ def references(scene: Path, frames: slice) -> dict:
             continue
         video = read_video(scene / gt.video, frames=frames, channels=1)
         first = read_video(scene / gt.video, frames=slice(0, 1), channels=1)[0]
-        white = np.ones_like(video[0])
-        out[gt.name] = {k: {"psnr": float(np.mean([psnr(ref, f) for f in video if not np.array_equal(ref, f)])),
-                            "ssim": float(np.mean([ssim(ref, f) for f in video]))}
-                        for k, ref in (("white", white), ("frame0_held", first))}
+        out[gt.name] = held_still_scores(video, {"white": np.ones_like(first), "frame0_held": first})
     return out
 
 
