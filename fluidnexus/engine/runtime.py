@@ -6,12 +6,17 @@ never at import time. Library code receives an already-resolved arch name; only 
 """
 from __future__ import annotations
 
+import contextlib
+import io
+import logging
 import os
 from dataclasses import dataclass
 from pathlib import Path
 
 os.environ.setdefault("ENABLE_TAICHI_HEADER_PRINT", "False")
 import taichi as ti  # noqa: E402
+
+log = logging.getLogger(__name__)
 
 ARCHES = ("cpu", "cuda")
 #: Taichi's offline kernel cache keeps this many bytes. Its default, 100 MiB with least-recently-used cleaning at
@@ -86,16 +91,20 @@ def init(arch: str = "cpu", precision: str = "f32", debug: bool = False) -> Runt
     if _current is not None:
         ti.reset()
     clear_stale_lock(cache_dir())
-    ti.init(
-        arch=ti.cuda if arch == "cuda" else ti.cpu,
-        default_fp=ti.f64 if precision == "f64" else ti.f32,
-        debug=debug,
-        offline_cache=True,
-        offline_cache_file_path=str(cache_dir()),
-        offline_cache_max_size_of_files=CACHE_BYTES,
-        log_level=ti.WARN,
-        random_seed=0,
-    )
+    # ti.init prints "[Taichi] Starting on arch=..." to stdout, where it would land among a command's output (and
+    # a command's one-line error); the arch goes to the log instead.
+    with contextlib.redirect_stdout(io.StringIO()):
+        ti.init(
+            arch=ti.cuda if arch == "cuda" else ti.cpu,
+            default_fp=ti.f64 if precision == "f64" else ti.f32,
+            debug=debug,
+            offline_cache=True,
+            offline_cache_file_path=str(cache_dir()),
+            offline_cache_max_size_of_files=CACHE_BYTES,
+            log_level=ti.WARN,
+            random_seed=0,
+        )
+    log.debug("Taichi started on %s (%s)", arch, precision)
     if arch == "cpu":
         import torch
 
