@@ -1,11 +1,18 @@
 """The ScalarFlow sample over a textured 3D backdrop, through the pipeline as a user runs it (issue 16 benchmarks).
 
     .venv/bin/python benchmarks/bench_composite.py --work /tmp/composite --protocol four-view|single-view \
-        [--frames 120] [-- extra recon options]
+        [--frames 120] [--backdrop waves|black|PHOTO] [-- extra recon options]
 
-The backdrop is the test scene's (tests/recon/backdrop_scene.py): a plane of gray waves 0.1 m behind the sample's
-volume, ray cast per camera; the sample's glowing smoke is composited over it as white smoke of opacity S,
-``I = S + B (1 - S)``. The input views get their true plates (``fluidnexus background --plate``).
+The backdrop (``--backdrop``):
+
+- ``waves`` (the default): the test scene's (tests/recon/backdrop_scene.py), a plane of gray waves 0.1 m behind the
+  sample's volume, ray cast per camera;
+- a photograph (``coffee``, ``chelsea``, ``astronaut``, ``rocket`` from scikit-image, or an image file) on a folded
+  wall and a floor behind the volume (``photo_backdrop.py``), in colour;
+- ``black``: no backdrop, the same run on the sample as it is (the reference for the others).
+
+The sample's glowing smoke is composited over the backdrop as white smoke of opacity S, ``I = S + B (1 - S)``. The
+input views get their true plates (``fluidnexus background --plate``).
 
 - ``four-view``: train00, train01, train03, train04 in; train02 held out, its truth composited too (its backdrop comes
   from the static layer). Compare with the four-view protocol on black (BENCHMARKS.md).
@@ -30,28 +37,43 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT))
 
 
-def write_scene(out: Path, protocol: str, frames: int) -> list[str]:
+def backdrop_plates(backdrop: str, volume):
+    """camera -> [H, W] or [H, W, 3] plate, or None for ``black``."""
+    if backdrop == "black":
+        return None
+    if backdrop == "waves":
+        from recon.backdrop_scene import plate
+
+        return plate
+    from benchmarks.photo_backdrop import load_photo, plate
+
+    photo = load_photo(backdrop)
+    return lambda camera: plate(camera, volume, photo)
+
+
+def write_scene(out: Path, protocol: str, frames: int, backdrop: str) -> list[str]:
     """The composited scene folder; returns the names of its input views (whose plates are in out/plates)."""
-    from recon.backdrop_scene import plate
-
     from fluidnexus.calibrate.pinf import read_pinf, source_at_volume_foot
     from fluidnexus.samples import sample_path
     from fluidnexus.scene import GroundTruth, Scene, View, save_scene
     from fluidnexus.video import read_video, write_video
 
     cap = read_pinf(sample_path("scalarflow") / "info.json")
+    plate = backdrop_plates(backdrop, cap.volume)
     inputs = ["train00", "train01", "train03", "train04"] if protocol == "four-view" else ["train02"]
     (out / "plates").mkdir(parents=True, exist_ok=True)
     views, truths = [], []
     for name, rec in cap.recordings.items():
         smoke = read_video(rec.media, frames=slice(0, frames), channels=1)
         composite = name in inputs or protocol == "four-view"  # single view: the novel views' truth is on black
-        if composite:
+        if composite and plate is not None:
             back = plate(rec.camera)
-            smoke = smoke + back[None, :, :, None] * (1.0 - smoke)
-            cv2.imwrite(str(out / "plates" / f"{name}.png"), np.rint(back * 65535).astype(np.uint16))
+            back = back[:, :, None] if back.ndim == 2 else back
+            smoke = smoke + back[None] * (1.0 - smoke)
+            cv2.imwrite(str(out / "plates" / f"{name}.png"), np.rint(back[:, :, ::-1] * 65535).astype(np.uint16))
         if name in inputs:
             write_video(out / "scene" / "videos" / f"{name}.mp4", smoke, cap.fps, crf=12)
             views.append(View(name, "input", rec.camera, f"videos/{name}.mp4"))
@@ -82,15 +104,17 @@ def main() -> None:
     parser.add_argument("--work", type=Path, required=True)
     parser.add_argument("--protocol", choices=["four-view", "single-view"], required=True)
     parser.add_argument("--frames", type=int, default=120)
+    parser.add_argument("--backdrop", default="waves", help="waves, black, or a photo (a scikit-image name or a file)")
     parser.add_argument("--smoke-color", help="single-view: synth --smoke-color (the composite's smoke: 1,1,1)")
     parser.add_argument("recon", nargs="*", help="extra recon options (after --)")
     args = parser.parse_args()
     work, log, seconds = args.work, args.work / "log.txt", {}
     scene, run = work / "scene", work / "run"
     if not (scene / "scene.json").exists():
-        inputs = write_scene(work, args.protocol, args.frames)
-        step(["background", scene, *[t for n in inputs for t in ("--plate", f"{n}={work / 'plates' / (n + '.png')}")]],
-             log, seconds)
+        inputs = write_scene(work, args.protocol, args.frames, args.backdrop)
+        if args.backdrop != "black":
+            plates = [t for n in inputs for t in ("--plate", f"{n}={work / 'plates' / (n + '.png')}")]
+            step(["background", scene, *plates], log, seconds)
     if args.protocol == "single-view" and not (scene / "videos" / "train00_synth.mp4").exists():
         step(["synth", scene, *(["--smoke-color", args.smoke_color] if args.smoke_color else [])], log, seconds)
         step(["refine", scene], log, seconds)
@@ -100,11 +124,11 @@ def main() -> None:
     step(["eval", run, "--json", work / "eval.json", "--arch", "cpu", *over], log, seconds)
     step(["render", run, "--out", work / "videos", "--compare", "--arch", "cpu", *over], log, seconds)
     scores = json.loads((work / "eval.json").read_text())
-    result = {"protocol": args.protocol, "frames": scores["frames"], "seconds": seconds,
+    result = {"protocol": args.protocol, "backdrop": args.backdrop, "frames": scores["frames"], "seconds": seconds,
               "novel_view": scores["novel_view"], "resimulation": scores["resimulation"]}
     (work / "composite.json").write_text(json.dumps(result, indent=1))
     nv = scores["novel_view"]
-    print(f"{args.protocol}: NVS {nv['psnr']:.2f} dB / SSIM {nv['ssim']:.4f}; re-simulation "
+    print(f"{args.protocol} over {args.backdrop}: NVS {nv['psnr']:.2f} dB / SSIM {nv['ssim']:.4f}; re-simulation "
           f"{scores['resimulation']['psnr']:.2f} dB; per view "
           + ", ".join(f"{k} {v['psnr']:.2f}" for k, v in nv["per_view"].items()) + f"; seconds {seconds}")
 
