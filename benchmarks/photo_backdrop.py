@@ -4,10 +4,10 @@ The backdrop is a photographer's set sized by the sample's volume (L its width):
 edge ``0.3 L`` behind the volume's back face, behind its centre, each turned 20 degrees towards the cameras, and a
 floor level with the volume's bottom. The photograph covers the walls (unrolled across the fold, ``2 L`` wide, its
 foot on the floor) and, at the same scale, the floor behind the volume's front face; beyond its edges it repeats
-mirrored, so there are no seams. In front of the volume the floor is a plain dark cloth (gray 0.1): the photo is
-behind the smoke, and a low camera's own stretch of floor in front of it is seen by no other camera (ScalarFlow's
-rig stands 6 cm above the volume's floor; before the cloth, half of the held-out view's error against its true
-plate lay in those bottom 20 rows).
+mirrored, so there are no seams. In front of the volume the floor is a plain dark cloth (gray 0.1), so the photo
+stays behind the smoke. A low camera's own stretch of floor in front of it is seen by no other camera: ScalarFlow's
+rig stands 6 cm above the volume's floor, and the held-out camera's bottom 20-40 rows show floor and cloth that no
+input view sees (BENCHMARKS.md, "ScalarFlow's smoke over photographs").
 The wings and the floor are shaded differently (1.0, 0.8, 0.9), as light from one side would, so the fold shows.
 Each pixel averages 3 x 3 rays, and each ray reads the photo filtered over its footprint (mip-mapping), so the
 photo's detail is not aliased, also where the floor is seen at a grazing angle.
