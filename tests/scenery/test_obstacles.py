@@ -1,5 +1,7 @@
 """Obstacles and source records in scene.json, and ``calibrate --obstacle``: parsing, frames, bad input."""
 import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -121,3 +123,17 @@ def test_bad_obstacle_option(tmp_path, option, needle):
     result = invoke("calibrate", "--sample", "scalarflow", "--out", tmp_path / "s", "--obstacle", option)
     assert_clean_failure(result, "--obstacle", needle)
     assert not (tmp_path / "s").exists()
+
+
+def test_unreadable_mesh_in_a_fresh_process(sample_scene, tmp_path):
+    """The same refusal from the installed command in its own process, where the engine starts for the first time:
+    nothing on stdout (Taichi announces its arch there when it starts), one error line on stderr."""
+    scene = _edit(sample_scene, tmp_path, obstacles=[{"kind": "mesh", "file": "junk.obj"}])
+    (tmp_path / "junk.obj").write_text("this is not a mesh\n")
+    proc = subprocess.run([sys.executable, "-m", "fluidnexus_cli", "recon", str(scene), "--out", str(tmp_path / "run"),
+                           "--frames", "0:2", "--arch", "cpu"], capture_output=True, text=True)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stdout == ""
+    lines = [line for line in proc.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: ") and "obstacles[0].file" in lines[0], proc.stderr
+    assert not (tmp_path / "run").exists()
