@@ -27,9 +27,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
-import time
 from pathlib import Path
 
 import cv2
@@ -38,6 +36,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT))
+from benchmarks.cli_steps import timed_command  # noqa: E402
 
 
 def backdrop_plates(backdrop: str, volume):
@@ -88,15 +87,9 @@ def write_scene(out: Path, protocol: str, frames: int, backdrop: str) -> list[st
 
 
 def step(args: list, log: Path, seconds: dict) -> None:
-    tic = time.time()
-    with open(log, "a") as fh:
-        fh.write("$ fluidnexus " + " ".join(map(str, args)) + "\n")
-        fh.flush()
-        code = subprocess.run([sys.executable, "-m", "fluidnexus_cli", *map(str, args)], stdout=fh,
-                              stderr=subprocess.STDOUT, cwd=ROOT).returncode
-    if code:
-        raise SystemExit(f"fluidnexus {args[0]} failed (exit {code}); see {log}")
-    seconds[args[0]] = round(seconds.get(args[0], 0.0) + time.time() - tic, 1)
+    """``fluidnexus ARGS`` (``cli_steps.timed_command``), its seconds added to ``seconds[ARGS[0]]``."""
+    took = timed_command(args, log)
+    seconds[args[0]] = round(seconds.get(args[0], 0.0) + took["seconds"], 1)
 
 
 def main() -> None:

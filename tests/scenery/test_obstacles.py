@@ -135,5 +135,7 @@ def test_unreadable_mesh_in_a_fresh_process(sample_scene, tmp_path):
     assert proc.returncode == 2, proc.stderr
     assert proc.stdout == ""
     lines = [line for line in proc.stderr.splitlines() if line.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: ") and "obstacles[0].file" in lines[0], proc.stderr
+    assert len(lines) == 1 and lines[0].startswith("error: "), proc.stderr
+    for needle in ("scene.json", "obstacles[0].file", "junk.obj"):
+        assert needle in lines[0], (needle, lines[0])
     assert not (tmp_path / "run").exists()
