@@ -3,11 +3,12 @@
 The backdrop is a photographer's set sized by the sample's volume (L its width): two vertical walls folded at an
 edge ``0.3 L`` behind the volume's back face, behind its centre, each turned 20 degrees towards the cameras, and a
 floor level with the volume's bottom. The photograph covers the walls (unrolled across the fold, ``2 L`` wide, its
-foot on the floor) and, at the same scale, the floor behind the volume's front face; beyond its edges it repeats
-mirrored, so there are no seams. In front of the volume the floor is a plain dark cloth (gray 0.1), so the photo
-stays behind the smoke. A low camera's own stretch of floor in front of it is seen by no other camera: ScalarFlow's
-rig stands 6 cm above the volume's floor, and the held-out camera's bottom 20-40 rows show floor and cloth that no
-input view sees (BENCHMARKS.md, "ScalarFlow's smoke over photographs").
+foot on the floor) and, at the same scale, the floor; beyond its edges it repeats mirrored, so there are no seams.
+The floor ends at the volume's front face, as a stage's edge does, so the photo stays behind the smoke and a ray
+past the edge sees nothing (black), as the waves' plane of ``bench_composite.py`` ends there. A floor that reached
+the cameras would put a strip of it into each low camera's view that no other camera sees: ScalarFlow's rig stands
+6 cm above the volume's floor, and with such a floor (the set's first version) the held-out camera's bottom 20-40
+rows showed floor that no input view saw (BENCHMARKS.md, "ScalarFlow's smoke over photographs").
 The wings and the floor are shaded differently (1.0, 0.8, 0.9), as light from one side would, so the fold shows.
 Each pixel averages 3 x 3 rays, and each ray reads the photo filtered over its footprint (mip-mapping), so the
 photo's detail is not aliased, also where the floor is seen at a grazing angle.
@@ -29,7 +30,6 @@ PHOTOS = ("coffee", "chelsea", "astronaut", "rocket")
 TURN = np.radians(20.0)
 SHADING = (1.0, 0.8, 0.9)  # left wing, right wing, floor
 SUPERSAMPLE = 3
-CLOTH = 0.1  # the plain dark cloth that covers the floor in front of the volume
 
 
 def load_photo(name: str) -> np.ndarray:
@@ -56,8 +56,8 @@ def _mirrored(coord: np.ndarray, size: int) -> np.ndarray:
 
 def trace(camera: Camera, volume: Volume, photo_shape, supersample: int = 1):
     """Rays through ``supersample`` x ``supersample`` points of every pixel of ``camera``, each to the nearest of the
-    two walls and the floor: (camera-space depth, photo column, photo row, shading), each [H * s, W * s]; shading 0
-    marks the plain cloth on the floor in front of the volume."""
+    two walls and the floor: (camera-space depth, photo column, photo row, shading), each [H * s, W * s]; a ray that
+    meets none of them has depth inf and shading 0."""
     lo, hi = np.asarray(volume.min, float), np.asarray(volume.max, float)
     width = hi[0] - lo[0]
     apex = np.array([0.5 * (lo[0] + hi[0]), lo[1], lo[2] - 0.3 * width])
@@ -69,7 +69,7 @@ def trace(camera: Camera, volume: Volume, photo_shape, supersample: int = 1):
     best = np.full(len(d), np.inf)
     u = np.zeros(len(d))
     v = np.zeros(len(d))
-    shading = np.ones(len(d))
+    shading = np.zeros(len(d))
     for side, shade in ((-1.0, SHADING[0]), (1.0, SHADING[1])):
         along = np.array([side * np.cos(TURN), 0.0, np.sin(TURN)])  # from the fold outwards, towards the cameras
         normal = np.array([-side * np.sin(TURN), 0.0, np.cos(TURN)])
@@ -77,7 +77,7 @@ def trace(camera: Camera, volume: Volume, photo_shape, supersample: int = 1):
             t = ((apex - o) @ normal) / (d @ normal)
         p = o + t[:, None] * d
         s = (p - apex) @ along
-        hit = (t > 0) & (s >= 0) & (t < best)
+        hit = (t > 0) & (s >= 0) & (p[:, 1] >= apex[1]) & (t < best)  # the walls stand on the floor
         best = np.where(hit, t, best)
         u = np.where(hit, photo_shape[1] / 2.0 + side * s / metres_per_pixel, u)
         v = np.where(hit, photo_shape[0] - (p[:, 1] - apex[1]) / metres_per_pixel, v)
@@ -85,12 +85,11 @@ def trace(camera: Camera, volume: Volume, photo_shape, supersample: int = 1):
     with np.errstate(divide="ignore", invalid="ignore"):
         t = (apex[1] - o[1]) / d[:, 1]
     p = o + t[:, None] * d
-    hit = (t > 0) & (t < best)
+    hit = (t > 0) & (t < best) & (p[:, 2] <= hi[2])  # the floor ends at the volume's front face
     best = np.where(hit, t, best)
     u = np.where(hit, photo_shape[1] / 2.0 + (p[:, 0] - apex[0]) / metres_per_pixel, u)
     v = np.where(hit, photo_shape[0] + (p[:, 2] - apex[2]) / metres_per_pixel, v)
     shading = np.where(hit, SHADING[2], shading)
-    shading = np.where(hit & (p[:, 2] > hi[2]), 0.0, shading)  # the cloth in front of the volume: shading 0
     shape = (camera.height * supersample, camera.width * supersample)
     return tuple(a.reshape(shape) for a in (best, u, v, shading))
 
@@ -116,5 +115,4 @@ def plate(camera: Camera, volume: Volume, photo: np.ndarray) -> np.ndarray:
         maps = [_mirrored(c / scale - 0.5, n).astype(np.float32) for c, n in ((u, image.shape[1]), (v, image.shape[0]))]
         seen += weight[:, :, None].astype(np.float32) * cv2.remap(image, maps[0], maps[1], cv2.INTER_LINEAR)
     seen *= shading[:, :, None].astype(np.float32)
-    seen[shading == 0] = CLOTH
     return cv2.resize(seen, (camera.width, camera.height), interpolation=cv2.INTER_AREA).clip(0.0, 1.0)
