@@ -16,14 +16,17 @@
    (on PINF's Game most of the smoke's hull inside the carved stairs lay within two voxels of its surface). The
    hull also holds the space right behind the smoke, so a body under dense smoke gets a dent as deep as the
    views' rays through the smoke reach into it.
-3. **Bodies**: connected occupied parts holding at least ``min_points`` surface points are obstacles (the
-   backdrop lies outside the volume and carves nothing). Each gets a signed-distance grid (negative inside, the
-   format of ``engine.obstacle.GridObstacle``) and a least-squares sphere fitted to its surface points; a body
-   whose surface points lie within ``sphere_rms`` of the sphere (relative to its radius), and whose volume that
-   sphere's matches (within ``ball_share``, :func:`ball_fits`), is sphere-like, and its engine body is that ball
-   (the carved part also holds what no camera sees behind the ball, e.g. under it when every camera looks down).
-   The volume's faces are not a body's surface: the grid continues the body beyond the faces it touches, so a
-   point inside it is moved to the surface that faces the flow, never out of the volume.
+3. **Bodies**: connected occupied parts holding at least ``min_points`` surface points, which at least ``views``
+   sure views see (three, or both where there are two; the median over the part's voxels), are obstacles (the
+   backdrop lies outside the volume and carves nothing). Two views bound a plain region only to the prism where
+   their cones cross: over a photographed wall, the layer's Gaussians in front of a patch of pure black that two
+   views see (the others look elsewhere) made five solids in an empty volume. Each gets a signed-distance grid
+   (negative inside, the format of ``engine.obstacle.GridObstacle``) and a least-squares sphere fitted to its
+   surface points; a body whose surface points lie within ``sphere_rms`` of the sphere (relative to its radius), and
+   whose volume that sphere's matches (within ``ball_share``, :func:`ball_fits`), is sphere-like, and its engine
+   body is that ball (the carved part also holds what no camera sees behind the ball, e.g. under it when every
+   camera looks down). The volume's faces are not a body's surface: the grid continues the body beyond the faces it
+   touches, so a point inside it is moved to the surface that faces the flow, never out of the volume.
 4. **Kinds**: a body that covers at least ``boundary_contact`` of one of the volume's faces (a floor, stairs, a
    wall) is a **boundary**: the scene itself, which the gas slides along (its carved grid, whatever its shape); any
    other body is a **solid** in the flow, which the gas flows around (``FoundObstacle.gas``).
@@ -58,6 +61,7 @@ class FinderConfig:
     sphere_rms: float = 0.08
     ball_share: tuple[float, float] = (0.125, 4.0)  # a ball's volume over its body's, for the ball to stand for it
     boundary_contact: float = 0.25  # share of one of the volume's faces a boundary covers
+    views: int = 3  # sure views that must see a body (both where there are two)
 
 
 BOUNDARY, SOLID = "boundary", "solid"
@@ -199,7 +203,7 @@ def find_obstacles(layer: StaticLayer, cameras, lo, hi, cfg: FinderConfig = Find
     axes = [lo[k] + (np.arange(res[k]) + 0.5) * spacing for k in range(3)]
     centers = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
     carved = np.zeros(len(centers), bool)
-    seen = np.zeros(len(centers), bool)
+    seen = np.zeros(len(centers), int)  # the sure views that see each voxel
     hulls = np.ones((len(smoke), len(centers)), bool)  # every view sees smoke there, per frame
     views = surface_points(layer, cameras, cfg.opaque, cfg.plain)
     confidences = [None] * len(cameras) if confidences is None else confidences
@@ -212,14 +216,15 @@ def find_obstacles(layer: StaticLayer, cameras, lo, hi, cfg: FinderConfig = Find
         sure = inside.copy()
         if confidence is not None:
             sure[inside] = np.asarray(confidence)[row[inside], col[inside]] >= CONFIDENT
-        seen |= sure
+        seen += sure
         carved |= inside & (depth < surface - cfg.tolerance * spacing)
         for k, masks in enumerate(smoke):
             shows = np.zeros(len(centers), bool)
             shows[inside] = masks[v][row[inside], col[inside]]
             hulls[k] &= shows
     carved |= hulls.any(axis=0)
-    occupied = (seen & ~carved).reshape(tuple(res))
+    occupied = ((seen > 0) & ~carved).reshape(tuple(res))
+    views_seeing = seen.reshape(tuple(res))
     points = np.concatenate([v[2] for v in views])
     points = points[np.all((points >= lo) & (points <= hi), axis=1)]
     labels, count = ndimage.label(occupied)
@@ -235,6 +240,8 @@ def find_obstacles(layer: StaticLayer, cameras, lo, hi, cfg: FinderConfig = Find
         if len(mine) < cfg.min_points:
             continue
         body = labels == label
+        if np.median(views_seeing[body]) < min(cfg.views, len(cameras)):
+            continue  # two views bound a plain region only to where their cones cross
         center, radius, rms = fit_sphere(mine)
         contact = face_contact(body)
         kind = BOUNDARY if max(contact) >= cfg.boundary_contact else SOLID

@@ -5,7 +5,11 @@ A surface without texture (PINF Sphere's uniformly coloured ball) matches itself
 plane-sweep stereo confirms no depth there; its seeds come from carving instead (the visual hull, Laurentini
 1994, with the stereo's depths). A node of a lattice over the volume is kept when
 
-1. at least two views see it, each on a plate pixel of confidence at least ``min_confidence``;
+1. at least ``views_needed`` views (three; both where there are two) see it, each on a plate pixel of confidence
+   at least ``min_confidence``. Two silhouettes bound a plain region only to the prism where their cones cross:
+   over a photographed wall, a patch of pure black that only two views see (a plain colour has no stereo depth)
+   filled that prism 0.3 m in front of the wall, the fit drew it as a dark body in front of the wall, and the
+   obstacle finder made solids of it (BENCHMARKS.md, "A plain patch seen by two views");
 2. every view that sees it shows something there: a pixel further than ``plain`` from the background colour
    (the silhouettes of objects over a plain backdrop);
 3. no view sees past it to a surface: where a view's stereo depth is confirmed at the node's pixel, that surface
@@ -28,8 +32,8 @@ from .stereo import DepthMap, sample
 
 
 def hull_points(views: list[DepthMap], lo, hi, background: np.ndarray, lattice: int = 24, plain: float = 0.03,
-                tolerance: float = 1.0, min_confidence: float = 0.5,
-                inner_tolerance: float = 3.0) -> tuple[np.ndarray, np.ndarray]:
+                tolerance: float = 1.0, min_confidence: float = 0.5, inner_tolerance: float = 3.0,
+                views_needed: int = 3) -> tuple[np.ndarray, np.ndarray]:
     """(points [K, 3], colours [K, C]): the lattice nodes (``lattice`` along the volume's size, cube root of its
     box volume) that the views do not see through (module docstring); ``views`` at the stereo's working size."""
     lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
@@ -54,7 +58,7 @@ def hull_points(views: list[DepthMap], lo, hi, background: np.ndarray, lattice: 
         kept &= ~sees | (shows & ~past)
         seen += sees
         total += np.where(sees[:, None], colour, 0.0)
-    kept &= seen >= 2
+    kept &= seen >= max(2, min(views_needed, len(views)))
     return nodes[kept], (total / np.maximum(seen, 1)[:, None])[kept]
 
 

@@ -64,6 +64,7 @@ class StaticConfig:
     lattice: int = 24  # nodes along the volume's size for the seeds no view sees through (scenery.static_hull)
     inner_tolerance: float = 3.0  # a depth confirmed inside the volume carves the hull's nodes more than this many
     # lattice spacings in front of it (scenery.static_hull)
+    hull_views: int = 3  # views that must see a hull node (both where there are two; scenery.static_hull)
     stereo: StereoConfig = StereoConfig()  # the seeds' depths (scenery.stereo)
     shell: float = 2.0  # seeds without a confirmed depth lie this many half-diagonals beyond the volume's centre,
     shell_cameras: float = 1.5  # and at least this many times the farthest input camera's distance from it
@@ -236,7 +237,7 @@ def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backd
     background = np.median(sure, axis=0) if backdrop is None else _channels(backdrop, sure.shape[-1])
     depths = depth_maps(cameras, plates, confidences, lo, hi, cfg.stereo)
     nodes, node_colors = hull_points(depths, lo, hi, background, cfg.lattice, cfg.plain,
-                                     inner_tolerance=cfg.inner_tolerance)
+                                     inner_tolerance=cfg.inner_tolerance, views_needed=cfg.hull_views)
     node_spacing = box_size(hi - lo) / cfg.lattice
     points, colors = [nodes], [node_colors]
     spacing = [np.full(len(nodes), node_spacing)]
