@@ -8,7 +8,7 @@ The backdrop (``--backdrop``):
 - ``waves`` (the default): the test scene's (tests/recon/backdrop_scene.py), a plane of gray waves 0.1 m behind the
   sample's volume, ray cast per camera;
 - a photograph (``coffee``, ``chelsea``, ``astronaut``, ``rocket`` from scikit-image, or an image file) on a folded
-  wall and a floor behind the volume (``photo_backdrop.py``), in colour;
+  wall behind the volume (``photo_backdrop.py``), in colour;
 - ``black``: no backdrop, the same run on the sample as it is (the reference for the others).
 
 The sample's glowing smoke is composited over the backdrop as white smoke of opacity S, ``I = S + B (1 - S)``. The

@@ -1,17 +1,16 @@
 """Photographs mapped onto a 3D backdrop behind the ScalarFlow sample (``bench_composite.py --backdrop PHOTO``).
 
-The backdrop is a photographer's set sized by the sample's volume (L its width): two vertical walls folded at an
-edge ``0.3 L`` behind the volume's back face, behind its centre, each turned 20 degrees towards the cameras, and a
-floor level with the volume's bottom. The photograph covers the walls (unrolled across the fold, ``2 L`` wide, its
-foot on the floor) and, at the same scale, the floor; beyond its edges it repeats mirrored, so there are no seams.
-The floor ends at the volume's front face, as a stage's edge does, so the photo stays behind the smoke and a ray
-past the edge sees nothing (black), as the waves' plane of ``bench_composite.py`` ends there. A floor that reached
-the cameras would put a strip of it into each low camera's view that no other camera sees: ScalarFlow's rig stands
-6 cm above the volume's floor, and with such a floor (the set's first version) the held-out camera's bottom 20-40
-rows showed floor that no input view saw (BENCHMARKS.md, "ScalarFlow's smoke over photographs").
-The wings and the floor are shaded differently (1.0, 0.8, 0.9), as light from one side would, so the fold shows.
+The backdrop is a photographer's set sized by the sample's volume (L its width): two walls folded at a vertical edge
+``0.3 L`` behind the volume's back face, behind its centre, each turned 20 degrees towards the cameras. The photograph
+covers them, unrolled across the fold, ``2 L`` wide, its foot level with the volume's bottom; beyond its edges it
+repeats mirrored, so there are no seams and every ray meets the set. The two wings are shaded differently (1.0 and
+0.8), as light from one side would, so the fold shows. There is no floor: ScalarFlow's rig stands 6 cm above the
+volume's floor, and a floor put a strip into each low camera's view that no other camera sees (the held-out
+camera's bottom 20-40 rows with a floor out to the cameras; 2,200 pixels of void past a floor that ends at the
+volume's front). Without one, 1,600 of train02's 129,600 pixels (its bottom rows) show wall that no input view sees
+(BENCHMARKS.md, "ScalarFlow's smoke over photographs").
 Each pixel averages 3 x 3 rays, and each ray reads the photo filtered over its footprint (mip-mapping), so the
-photo's detail is not aliased, also where the floor is seen at a grazing angle.
+photo's detail is not aliased where a wing is seen at a slant.
 
 Photos come from scikit-image's bundled data (offline: ``coffee`` is a cup on a table with bright highlights,
 ``chelsea`` a cat, ``astronaut`` a portrait, ``rocket`` one on its pad against the sky) or from an image file.
@@ -28,7 +27,7 @@ from fluidnexus.scene import Volume
 
 PHOTOS = ("coffee", "chelsea", "astronaut", "rocket")
 TURN = np.radians(20.0)
-SHADING = (1.0, 0.8, 0.9)  # left wing, right wing, floor
+SHADING = (1.0, 0.8)  # left wing, right wing
 SUPERSAMPLE = 3
 
 
@@ -55,9 +54,8 @@ def _mirrored(coord: np.ndarray, size: int) -> np.ndarray:
 
 
 def trace(camera: Camera, volume: Volume, photo_shape, supersample: int = 1):
-    """Rays through ``supersample`` x ``supersample`` points of every pixel of ``camera``, each to the nearest of the
-    two walls and the floor: (camera-space depth, photo column, photo row, shading), each [H * s, W * s]; a ray that
-    meets none of them has depth inf and shading 0."""
+    """Rays through ``supersample`` x ``supersample`` points of every pixel of ``camera``, each to the nearer of the
+    two walls: (camera-space depth, photo column, photo row, shading), each [H * s, W * s]."""
     lo, hi = np.asarray(volume.min, float), np.asarray(volume.max, float)
     width = hi[0] - lo[0]
     apex = np.array([0.5 * (lo[0] + hi[0]), lo[1], lo[2] - 0.3 * width])
@@ -77,19 +75,11 @@ def trace(camera: Camera, volume: Volume, photo_shape, supersample: int = 1):
             t = ((apex - o) @ normal) / (d @ normal)
         p = o + t[:, None] * d
         s = (p - apex) @ along
-        hit = (t > 0) & (s >= 0) & (p[:, 1] >= apex[1]) & (t < best)  # the walls stand on the floor
+        hit = (t > 0) & (s >= 0) & (t < best)
         best = np.where(hit, t, best)
         u = np.where(hit, photo_shape[1] / 2.0 + side * s / metres_per_pixel, u)
         v = np.where(hit, photo_shape[0] - (p[:, 1] - apex[1]) / metres_per_pixel, v)
         shading = np.where(hit, shade, shading)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = (apex[1] - o[1]) / d[:, 1]
-    p = o + t[:, None] * d
-    hit = (t > 0) & (t < best) & (p[:, 2] <= hi[2])  # the floor ends at the volume's front face
-    best = np.where(hit, t, best)
-    u = np.where(hit, photo_shape[1] / 2.0 + (p[:, 0] - apex[0]) / metres_per_pixel, u)
-    v = np.where(hit, photo_shape[0] + (p[:, 2] - apex[2]) / metres_per_pixel, v)
-    shading = np.where(hit, SHADING[2], shading)
     shape = (camera.height * supersample, camera.width * supersample)
     return tuple(a.reshape(shape) for a in (best, u, v, shading))
 
