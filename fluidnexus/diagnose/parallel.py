@@ -106,6 +106,7 @@ class Task:
 def _start(config, setup, observed, cameras, sigma, train) -> None:
     """A worker's initialiser: the engine as in the parent, then its own simulator and fitter."""
     global _fitter
+    _exit_with(os.getppid())
     from fluidnexus import engine
 
     engine.init(arch=config.arch, precision=config.precision, debug=config.debug)
@@ -115,6 +116,21 @@ def _start(config, setup, observed, cameras, sigma, train) -> None:
     # would print a warning for each try
     ti.set_logging_level(ti.ERROR)
     _fitter = Fitter(PlumeSimulator(setup), observed, cameras, sigma, train)
+
+
+def _exit_with(parent: int, every: float = 1.0) -> None:
+    """Ends this worker within ``every`` seconds of its parent process ``parent`` ending. A parent killed by a
+    signal (SIGTERM, SIGKILL) never shuts its pool down: its workers stayed, one blocked writing a result that no one
+    reads, and kept the pipes that the parent's caller reads its output from open, so that caller waited forever."""
+    import threading
+    import time
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(every)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
 def _run(fn, args: tuple):
