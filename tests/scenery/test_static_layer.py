@@ -67,6 +67,19 @@ def test_one_view_finds_no_obstacle(fitted):
     assert find_obstacles(layer, cameras[:1], LO, HI) == []
 
 
+def test_a_body_that_two_views_see_is_not_found(fitted):
+    """The same layer shown to two of its cameras and two that look away from the volume: two silhouettes bound
+    the ball only to where their cones cross, so no body is found (a body needs three sure views); counting one
+    view as enough, the old rule, finds it."""
+    from fluidnexus.scenery.found_obstacles import FinderConfig, find_obstacles
+
+    cameras, _, layer = fitted
+    away = [Camera.look_at(64, 64, 70.0, TARGET + np.array([x, 0.3, 2.6]), TARGET + np.array([4 * x, 0.3, 0.0]))
+            for x in (-1.0, 1.0)]
+    assert find_obstacles(layer, cameras[1:3] + away, LO, HI) == []
+    assert find_obstacles(layer, cameras[1:3] + away, LO, HI, FinderConfig(views=1))
+
+
 def test_silhouette_rays_graze_the_ball():
     """The rays through the outline of a ball's silhouette lie at its radius from its centre (within a pixel)."""
     from fluidnexus.scenery.silhouettes import silhouette_rays
