@@ -58,7 +58,7 @@ def main() -> None:
     parser.add_argument("--composite", type=Path)
     parser.add_argument("--scale", type=float, default=0.25)
     parser.add_argument("--frames", default="0:60")
-    parser.add_argument("--iterations", type=int, default=400)
+    parser.add_argument("--iterations", type=int, help="default: StaticConfig's")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE")
     parser.add_argument("--save", type=Path)
@@ -84,7 +84,7 @@ def main() -> None:
                                            channels)
     cameras = list(named.values())
     overrides = {k: float(v) if not v.isdigit() else int(v) for k, v in (s.split("=", 1) for s in args.set)}
-    cfg = StaticConfig(iterations=args.iterations, seed=args.seed, **overrides)
+    cfg = StaticConfig(iterations=args.iterations or StaticConfig.iterations, seed=args.seed, **overrides)
     tic = time.perf_counter()
     backdrop = None if args.plates_median else scene.backdrop_color
     layer = fit_static(cameras, plates, confidences, scene.volume.min, scene.volume.max, cfg, backdrop, scene.ground(),

@@ -25,7 +25,7 @@ def main() -> None:
     parser.add_argument("scene")
     parser.add_argument("--scale", type=float, default=0.25)
     parser.add_argument("--frames", default="0:120")
-    parser.add_argument("--iterations", type=int, default=400)
+    parser.add_argument("--iterations", type=int, help="default: StaticConfig's")
     args = parser.parse_args()
 
     from fluidnexus import engine
@@ -46,7 +46,7 @@ def main() -> None:
     cameras = list(named.values())
     tic = time.perf_counter()
     layer = fit_static(cameras, plates, confidences, scene.volume.min, scene.volume.max,
-                       StaticConfig(iterations=args.iterations))
+                       StaticConfig(iterations=args.iterations or StaticConfig.iterations))
     fit_s = time.perf_counter() - tic
     found = find_obstacles(layer, cameras, scene.volume.min, scene.volume.max)
     refitted = refine_balls(found, layer, cameras)

@@ -114,7 +114,7 @@ class ReconConfig:
     physical_emit_radius: float = 0.09
     init_visual_height: float = 0.05
     stabilization_steps: int = 20
-    static_iters: int = 400
+    static_iters: int = 1200
     initial_look: str = "auto"
     physical_support: str = "auto"
     length_scale: float = 1.0

@@ -59,7 +59,7 @@ FORMAT = "fluidnexus-static/1"
 class StaticConfig:
     """Settings of a static-layer fit. Lengths are fractions of the volume's size (cube root of its volume)."""
 
-    iterations: int = 400
+    iterations: int = 1200
     rays: int = 32  # rays per image side per view
     lattice: int = 24  # nodes along the volume's size for the seeds no view sees through (scenery.static_hull)
     inner_tolerance: float = 3.0  # a depth confirmed inside the volume carves the hull's nodes more than this many
@@ -80,7 +80,7 @@ class StaticConfig:
     lr_color: float = 0.02
     densify_every: int = 100
     densify_from: int = 100
-    densify_until: int = 300
+    densify_until: int = 900
     grad_threshold: float = 6e-4
     percent_dense: float = 0.01
     min_opacity: float = 0.005
