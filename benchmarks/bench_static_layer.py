@@ -16,8 +16,8 @@ composite (tests/recon/backdrop_scene.py: the ScalarFlow sample over a plane of 
 held out, at 0.25 of the sample's size) into WORK with the input views' true plates, and scores that scene.
 The background colour is scene.json's ``backdrop_color`` when it has one, as in recon. ``--set`` overrides a
 ``StaticConfig`` field (numbers only); ``--plates-median`` ignores ``backdrop_color``.
-The ground truth is read for scoring only. ``--save DIR`` writes the layer's render, the median and the input
-plates as PNG files for a look.
+The ground truth is read for scoring only. ``--save DIR`` writes the fitted layer (DIR/static.npz) and, as PNG
+files for a look, the layer's render and alpha, the median and the input plates.
 """
 from __future__ import annotations
 
@@ -72,7 +72,7 @@ def main() -> None:
     from fluidnexus.metrics import psnr, ssim
     from fluidnexus.scene import load_ground_truth, load_scene
     from fluidnexus.scenery.plate_store import read_plate
-    from fluidnexus.scenery.static_layer import StaticConfig, fit_static, render_static
+    from fluidnexus.scenery.static_layer import StaticConfig, fit_static, render_static, save_static
     from fluidnexus.scenery.world import plates_at, view_anchor
     from fluidnexus.video import read_video
 
@@ -100,7 +100,7 @@ def main() -> None:
         video = read_video(scene.root / truth.video, frames=slice(start, stop), size=(camera.width, camera.height),
                            channels=plates[0].shape[-1])
         median = np.median(video, axis=0).astype(np.float32)
-        image = render_static(layer, camera)[0].numpy()
+        image, alpha, _ = (t.numpy() for t in render_static(layer, camera, return_depth=True))
         flat = np.broadcast_to(flat_color.astype(np.float32), median.shape)
         rows.append({"view": truth.name, "psnr": round(float(psnr(image, median)), 2),
                      "ssim": round(float(ssim(image, median)), 3),
@@ -108,9 +108,11 @@ def main() -> None:
         if args.save:
             args.save.mkdir(parents=True, exist_ok=True)
             write_png(args.save / f"{truth.name}.render.png", image)
+            write_png(args.save / f"{truth.name}.alpha.png", alpha[..., None])
             write_png(args.save / f"{truth.name}.median.png", median)
     train = [round(float(psnr(render_static(layer, c)[0].numpy(), p)), 2) for c, p in zip(cameras, plates)]
     if args.save:
+        save_static(args.save, layer)
         for name, c, p in zip(names, cameras, plates):
             write_png(args.save / f"{name}.render.png", render_static(layer, c)[0].numpy())
             write_png(args.save / f"{name}.plate.png", p)
