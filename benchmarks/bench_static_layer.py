@@ -100,7 +100,8 @@ def main() -> None:
         video = read_video(scene.root / truth.video, frames=slice(start, stop), size=(camera.width, camera.height),
                            channels=plates[0].shape[-1])
         median = np.median(video, axis=0).astype(np.float32)
-        image, alpha, _ = (t.numpy() for t in render_static(layer, camera, return_depth=True))
+        image, alpha, _ = render_static(layer, camera)
+        image, alpha = image.numpy(), alpha.numpy()
         flat = np.broadcast_to(flat_color.astype(np.float32), median.shape)
         rows.append({"view": truth.name, "psnr": round(float(psnr(image, median)), 2),
                      "ssim": round(float(ssim(image, median)), 3),
@@ -110,11 +111,12 @@ def main() -> None:
             write_png(args.save / f"{truth.name}.render.png", image)
             write_png(args.save / f"{truth.name}.alpha.png", alpha[..., None])
             write_png(args.save / f"{truth.name}.median.png", median)
-    train = [round(float(psnr(render_static(layer, c)[0].numpy(), p)), 2) for c, p in zip(cameras, plates)]
+    renders = [render_static(layer, c)[0].numpy() for c in cameras]
+    train = [round(float(psnr(r, p)), 2) for r, p in zip(renders, plates)]
     if args.save:
         save_static(args.save, layer)
-        for name, c, p in zip(names, cameras, plates):
-            write_png(args.save / f"{name}.render.png", render_static(layer, c)[0].numpy())
+        for name, r, p in zip(names, renders, plates):
+            write_png(args.save / f"{name}.render.png", r)
             write_png(args.save / f"{name}.plate.png", p)
     print(f"scene {scene_dir}  inputs {','.join(names)}  size {cameras[0].width}x{cameras[0].height}  "
           f"iterations {cfg.iterations}  seed {cfg.seed}  {overrides or ''}")
