@@ -27,11 +27,14 @@ the radius ratio, found speed / true inflow speed, the start frame. Obstacles: r
 for each true one, in the true body's size (radius or half-diagonal).
 
 A step that fails (the tool's exit 2) makes a failed row with the tool's one-line message; it counts as beating no
-reference. One refusal is answered as a user would: where synth refuses a single video because the smoke does not
-start on the default floor (the volume's bottom face; the family's sources float anywhere in the box), the table
-declares the floor a user would state, the horizontal plane at the nozzle's height (through the true source's
-centre: one number of the truth), runs synth again and marks the row "floor declared" (the refusal is kept in
-W/seedN/single-view/floor_refused.txt and the row's ``floor_declared``). A scene is prepared again from scratch
+reference. The single video's floor is stated as a user would state it: every source of the family floats in its box
+(plumes start 8-30 % up it, jets 20-55 %, puffs 70-85 %: benchmarks/scenes/spec.py), so the volume's bottom face,
+synth's default floor, is never where the smoke starts, and one view cannot show how far along its rays the nozzle
+is. Before ``synth`` the table declares the floor at the nozzle's height (scene.json ``floor``: the horizontal
+plane through the true source's centre, one number of the truth; none where the true source sits on the volume's
+floor) and synth finds the rest from the input view; the row is marked "floor declared" (W/seedN/single-view/
+floor_declared.txt and the row's ``floor_declared`` say why). Where synth refuses even that floor (a foot's ray that
+misses it), the row fails with the tool's message. A scene is prepared again from scratch
 unless every preparation step of an earlier run succeeded (W/seedN/PROTOCOL/prepared.json).
 ``--rescore`` computes the scores again from the runs and eval.json files already in W (steps not re-run, their
 timings kept; failed rows stay as they are). Results go to W/results/seedN-PROTOCOL.json (kept, so the development
@@ -65,7 +68,7 @@ from benchmarks.scenes.splits import SPLITS, HeldOutError  # noqa: E402
 # the demo's reduced recon settings (cli/demo.py): a scene in minutes on a 2-core CPU
 FAST_RECON = "--init-iters 150 --dynamics-iters 12 --appearance-iters 8 --stabilization-steps 10 --static-iters 150"
 PROTOCOLS = ("four-view", "single-view")
-REFUSED = "floor_refused.txt"  # synth's refusal with the default floor, where the table then declared one
+DECLARED = "floor_declared.txt"  # why the table declared the single video's floor (a user's statement)
 
 
 def references(scene: Path, frames: tuple, size: tuple, channels: int) -> dict:
@@ -112,7 +115,7 @@ def prepare_scene(capture: Path, truth: dict, protocol: str, work: Path, log: Pa
     if done.exists():  # every step of an earlier run succeeded
         return json.loads(done.read_text())
     shutil.rmtree(scene, ignore_errors=True)  # what a failed step of an earlier run left
-    (work / REFUSED).unlink(missing_ok=True)
+    (work / DECLARED).unlink(missing_ok=True)
     cmd = ["calibrate", "--from-pinf", capture / "info.json", "--input", roles["input"], "--ground-truth",
            roles["ground_truth"], *truth["calibrate_args"], "--out", scene]
     if "novel" in roles:
@@ -124,22 +127,24 @@ def prepare_scene(capture: Path, truth: dict, protocol: str, work: Path, log: Pa
             plates = [t for n in roles["input"].split(",") for t in ("--plate", f"{n}={capture / 'plates' / n}.png")]
         steps["background"] = timed_command(["background", scene, *plates], log)
     if protocol == "single-view":
-        try:
-            steps["synth"] = timed_command(["synth", scene], log)
-        except RuntimeError:
-            refusal = tool_error(log)
-            if "floor" not in refusal:
-                raise
-            # the smoke does not start on the default floor (the volume's bottom): the user states the nozzle's
-            # height, a floor through the true source (scene.json ``floor``), and synth finds the rest again
-            spec = json.loads((scene / "scene.json").read_text())
-            spec["floor"] = {"point": truth["source"]["center"], "normal": [0.0, 1.0, 0.0]}
-            (scene / "scene.json").write_text(json.dumps(spec, indent=1))
-            (work / REFUSED).write_text(refusal + "\n")
-            steps["synth"] = timed_command(["synth", scene], log)
+        declare_floor(scene, truth, work / DECLARED)
+        steps["synth"] = timed_command(["synth", scene], log)
         steps["refine"] = timed_command(["refine", scene], log)
     done.write_text(json.dumps(steps))
     return steps
+
+
+def declare_floor(scene: Path, truth: dict, record: Path) -> None:
+    """The user's statement of the nozzle's height: scene.json ``floor`` through the true source's centre (the
+    module docstring), unless the true source sits on the volume's floor (within its radius); why goes to ``record``."""
+    source, floor = truth["source"], truth["volume"]["min"][1]
+    if source["center"][1] - floor <= source["radius"]:
+        return
+    spec = json.loads((scene / "scene.json").read_text())
+    spec["floor"] = {"point": source["center"], "normal": [0.0, 1.0, 0.0]}
+    (scene / "scene.json").write_text(json.dumps(spec, indent=1))
+    record.write_text(f"the nozzle {source['center'][1] - floor:.4g} m above the volume's floor: the floor declared at "
+                      "its height\n")
 
 
 def one(seed: int, protocol: str, args) -> dict:
@@ -182,7 +187,7 @@ def one(seed: int, protocol: str, args) -> dict:
                                      channels),
             "source": source_score(info["source"], truth["source"], truth["length_m"]),
             "source_finder": info.get("source_finder"),
-            "floor_declared": (pwork / REFUSED).read_text().strip() if (pwork / REFUSED).exists() else None,
+            "floor_declared": (pwork / DECLARED).read_text().strip() if (pwork / DECLARED).exists() else None,
             "obstacles": obstacle_score(info.get("found_obstacles", []), truth["obstacles"]),
             "steps": steps,
             "seconds": round(sum(s["seconds"] for s in steps.values()), 1),

@@ -1,4 +1,4 @@
-"""Where the plume stands, from one view: the foot of the earliest smoke, cast onto the scene's floor.
+"""Where the plume stands, from one view: the end the earliest smoke leaves from, cast onto the scene's floor.
 
 From a single video the depth of the smoke along the input rays is not observed: any plume on the input ray through
 each pixel looks the same. The tool fixes it with one stated assumption: the smoke leaves something that stands on
@@ -7,12 +7,16 @@ input ray through the foot of the earliest smoke meets the floor at the source:
 
 1. the earliest frame in which at least ``MIN_PIXELS`` pixels differ from what the view sees behind the smoke by
    more than ``THRESHOLD`` (``scenery.backdrop.smoke_mask``);
-2. the image direction of "down" (the floor normal, reversed) at the smoke, and the smoke's extent along it: the
-   foot is its ``FOOT_PERCENTILE`` extent (robust to a few noisy pixels), centred across the band of smoke pixels
-   within ``FOOT_BAND`` of it;
-3. the foot pixel's ray meets the floor at the near rim of the inflow (seen from above, the lowest smoke in the
-   image is the rim's point nearest the camera); the band's width at that depth gives the radius, and the centre
-   lies one radius further along the ray's horizontal direction.
+2. the image direction of "down" (the floor normal, reversed) at the smoke, and the end of the smoke it leaves
+   from: its foot, unless over the next ``LEAVING_FRAMES`` frames its centroid moves down the image, by more than
+   a pixel and more than it moves across (a puff from a nozzle above: the end is its top). The end is the smoke's
+   ``FOOT_PERCENTILE`` extent along down (or up), robust to a few noisy pixels, centred across the band of smoke
+   pixels within ``FOOT_BAND`` of it;
+3. the end pixel's ray meets the floor (for a puff, the plane of its nozzle that the user declares) at a rim of the
+   inflow: the rim nearest the camera where the camera looks at the end from the side the smoke leaves to (seen
+   from above, the lowest smoke in the image is the near rim), else the far rim. The band's width at that depth
+   gives the radius, and the centre lies one radius beyond the near rim along the ray's horizontal direction (one
+   radius before the far rim).
 
 The cast is only as good as the angle at which the foot's ray meets the floor: a camera at the floor's height sees
 it edge on, and a pixel of error in the foot moves the cast far along the ray (ScalarFlow's cameras stand 5.6 cm
@@ -45,6 +49,8 @@ FOOT_PERCENTILE = 98.0  # the foot: this percentile of the smoke pixels' extent 
 FOOT_BAND = 0.05  # the foot's band: pixels within this share of the smoke's extent above the foot
 MIN_BAND_PIXELS = 2.0  # ... and at least this many pixels
 MIN_GRAZING_DEG = 8.0  # a foot ray meeting the floor at a smaller angle does not fix the depth
+LEAVING_FRAMES = 4  # the smoke's motion in the image over this many frames after the earliest tells which end it
+#                     leaves from
 
 
 @dataclass(frozen=True)
@@ -90,6 +96,23 @@ def earliest_smoke(footage: np.ndarray, behind) -> tuple[int, np.ndarray]:
     return -1, None
 
 
+def leaves_downward(footage: np.ndarray, behind, t0: int, mask: np.ndarray, down: np.ndarray) -> bool:
+    """Whether the smoke that ``mask`` (frame ``t0``) shows moves down the image over the next
+    :data:`LEAVING_FRAMES` frames: its centroid moves along ``down`` by more than a pixel and more than across."""
+    t1 = min(t0 + LEAVING_FRAMES, len(footage) - 1)
+    later = smoke_mask(footage[t1], THRESHOLD, behind) if t1 > t0 else None
+    if later is None or later.sum() < MIN_PIXELS:
+        return False
+
+    def centroid(m):
+        rows, cols = np.nonzero(m)
+        return np.array([cols.mean(), rows.mean()])
+
+    moved = centroid(later) - centroid(mask)
+    along, across = float(moved @ down), abs(float(moved @ np.array([-down[1], down[0]])))
+    return along > 1.0 and along > across
+
+
 def plume_foot(scene: Scene, view_name: str, camera: Camera, footage: np.ndarray, behind,
                video: Path) -> PlumeFoot:
     """The source of ``scene`` found in the input view ``view_name`` (module docstring).
@@ -117,22 +140,25 @@ def plume_foot(scene: Scene, view_name: str, camera: Camera, footage: np.ndarray
     if depth <= 0:
         raise InputError(video, None, "the scene's volume lies behind the input camera")
     down = down_in_image(camera, centre, depth, normal, 0.05 * depth)
-    across = np.array([-down[1], down[0]])
-    along = uv @ down
+    downward = leaves_downward(footage, behind, t0, mask, down)
+    leave = -down if downward else down  # towards the end the smoke leaves from
+    across = np.array([-leave[1], leave[0]])
+    along = uv @ leave
     s_foot = float(np.percentile(along, FOOT_PERCENTILE))
     extent = s_foot - float(along.min())
     band = uv[along >= s_foot - max(MIN_BAND_PIXELS, FOOT_BAND * extent)]
     lateral = band @ across
-    pixel = s_foot * down + float(np.median(lateral)) * across
+    pixel = s_foot * leave + float(np.median(lateral)) * across
     ray = camera.unproject(pixel[None], 1.0)[0] - camera.center
     ray /= np.linalg.norm(ray)
     grazing = float(np.degrees(np.arcsin(min(1.0, abs(float(ray @ normal))))))
     hit = floor.hit(camera.center, ray)
-    where = f"the ray through the smoke's foot (pixel {np.round(pixel, 1).tolist()} of frame {t0})"
+    end = "top" if downward else "foot"
+    where = f"the ray through the smoke's {end} (pixel {np.round(pixel, 1).tolist()} of frame {t0})"
     if grazing < MIN_GRAZING_DEG and scene.volume is not None:
         hit = _upright_plane_hit(camera, ray, ref, normal)  # the box decides
         hit = np.clip(hit, scene.volume.min, scene.volume.max)
-        method = (f"input view: the foot of the earliest smoke on the upright plane through the volume's centre "
+        method = (f"input view: the {end} of the earliest smoke on the upright plane through the volume's centre "
                   f"facing the camera (its ray meets the floor at {grazing:.1f} degrees, under {MIN_GRAZING_DEG:g}: "
                   "the floor does not fix the depth)")
         log.warning("synth: %s; declare the source in scene.json where the box's centre is not the plume's", method)
@@ -140,7 +166,7 @@ def plume_foot(scene: Scene, view_name: str, camera: Camera, footage: np.ndarray
         raise InputError(scene.root / SCENE_FILE, "floor", f"{where} misses the floor; declare the source or the "
                                                            "floor in scene.json")
     else:
-        method = "input view: the foot of the earliest smoke cast onto the floor"
+        method = f"input view: the {end} of the earliest smoke cast onto the floor"
         if scene.volume is not None:
             lo, hi = np.asarray(scene.volume.min), np.asarray(scene.volume.max)
             tol = 1e-6 * float(np.max(hi - lo))
@@ -152,11 +178,14 @@ def plume_foot(scene: Scene, view_name: str, camera: Camera, footage: np.ndarray
     hit_depth = float(camera.project(hit[None])[1][0])
     half_width = max(1.0, float(np.sqrt(2.0) * np.std(lateral)))  # a uniform disk's rms, as the hull finder
     radius = half_width * hit_depth / float(camera.K[0, 0])
-    if grazing >= MIN_GRAZING_DEG:  # from the near rim to the centre
+    if grazing >= MIN_GRAZING_DEG:  # from the rim the end's ray meets to the centre
         away = ray - (ray @ normal) * normal
-        hit = hit + radius * away / max(np.linalg.norm(away), 1e-12)
+        above = float((camera.center - np.asarray(floor.point)) @ normal) > 0.0
+        near = above != downward  # the camera looks at the end from the side the smoke leaves to
+        hit = hit + (1.0 if near else -1.0) * radius * away / max(np.linalg.norm(away), 1e-12)
     source = Source(tuple(float(v) for v in hit), radius)
     record = {"method": method, "view": view_name, "frame": t0, "pixel": [round(float(v), 2) for v in pixel],
-              "grazing_deg": round(grazing, 2), "floor": floor.to_dict(), "floor_declared": scene.floor is not None,
+              "end": end, "grazing_deg": round(grazing, 2), "floor": floor.to_dict(),
+              "floor_declared": scene.floor is not None,
               "center": list(source.center), "radius": radius}
     return PlumeFoot(source, record)

@@ -92,3 +92,34 @@ def test_a_floor_outside_the_volume_is_refused():
     with pytest.raises(InputError, match="zero length"):
         Floor.from_dict({"point": [0.0, 0.0, 0.0], "normal": [0, 0, 0]}, "scene.json", VOLUME)
     assert Floor.from_dict({"point": [0.0, 0.5, 0.0], "normal": [0, 2, 0]}, "scene.json", VOLUME).normal == (0, 1, 0)
+
+
+def puff_footage(camera: Camera, nozzle: np.ndarray, frames: int = 6) -> np.ndarray:
+    """[frames, H, W, 1]: frame 0 empty, then a column of smoke hanging from ``nozzle`` that grows downward."""
+    video = np.zeros((frames, camera.height, camera.width, 1), np.float32)
+    for t in range(1, frames):
+        video[t:t + 1] = footage(camera, column(nozzle, RADIUS, nozzle[1] - 0.06 * t, nozzle[1], seed=t), 2)[1:]
+    return video
+
+
+@pytest.mark.parametrize("eye", [(0.3, 0.2, 1.6), (0.3, 1.3, 1.6)], ids=["below-the-nozzle", "above-it"])
+def test_a_puff_from_a_nozzle_above_is_cast_from_its_top(eye):
+    # a downward puff: its foot moves away from the nozzle, so the end cast onto the nozzle's declared plane is its
+    # top, seen from below the plane (a level camera under a ceiling nozzle) and from above it
+    nozzle = np.array([FOOT[0], 0.8, FOOT[2]])
+    camera = Camera.look_at(W, H, 150.0, eye=eye, target=(0.1, 0.6, 0.0))
+    floor = Floor((0.0, 0.8, 0.0))
+    found = plume_foot(scene_for(camera, floor), "cam", camera, puff_footage(camera, nozzle), None, Path("cam.mp4"))
+    assert found.record["end"] == "top" and "top of the earliest smoke" in found.record["method"]
+    np.testing.assert_allclose(found.source.center, nozzle, atol=0.02)  # 2 % of the box
+    assert found.source.radius == pytest.approx(RADIUS, rel=0.5)
+
+
+def test_a_column_that_grows_upward_keeps_its_foot():
+    camera = Camera.look_at(W, H, 150.0, eye=(0.3, 0.7, 1.6), target=(0.1, 0.2, 0.0))
+    video = np.zeros((6, H, W, 1), np.float32)
+    for t in range(1, 6):
+        video[t:t + 1] = footage(camera, column(FOOT, RADIUS, 0.0, 0.06 * t, seed=t), 2)[1:]
+    found = plume_foot(scene_for(camera), "cam", camera, video, None, Path("cam.mp4"))
+    assert found.record["end"] == "foot"
+    np.testing.assert_allclose(found.source.center, FOOT, atol=0.02)
