@@ -96,19 +96,15 @@ def earliest_smoke(footage: np.ndarray, behind) -> tuple[int, np.ndarray]:
     return -1, None
 
 
-def leaves_downward(footage: np.ndarray, behind, t0: int, mask: np.ndarray, down: np.ndarray) -> bool:
-    """Whether the smoke that ``mask`` (frame ``t0``) shows moves down the image over the next
+def leaves_downward(footage: np.ndarray, behind, t0: int, centre: np.ndarray, down: np.ndarray) -> bool:
+    """Whether the smoke of frame ``t0`` (its pixels' centroid ``centre``) moves down the image over the next
     :data:`LEAVING_FRAMES` frames: its centroid moves along ``down`` by more than a pixel and more than across."""
     t1 = min(t0 + LEAVING_FRAMES, len(footage) - 1)
     later = smoke_mask(footage[t1], THRESHOLD, behind) if t1 > t0 else None
     if later is None or later.sum() < MIN_PIXELS:
         return False
-
-    def centroid(m):
-        rows, cols = np.nonzero(m)
-        return np.array([cols.mean(), rows.mean()])
-
-    moved = centroid(later) - centroid(mask)
+    rows, cols = np.nonzero(later)
+    moved = np.array([cols.mean(), rows.mean()]) + 0.5 - centre
     along, across = float(moved @ down), abs(float(moved @ np.array([-down[1], down[0]])))
     return along > 1.0 and along > across
 
@@ -140,7 +136,7 @@ def plume_foot(scene: Scene, view_name: str, camera: Camera, footage: np.ndarray
     if depth <= 0:
         raise InputError(video, None, "the scene's volume lies behind the input camera")
     down = down_in_image(camera, centre, depth, normal, 0.05 * depth)
-    downward = leaves_downward(footage, behind, t0, mask, down)
+    downward = leaves_downward(footage, behind, t0, centre, down)
     leave = -down if downward else down  # towards the end the smoke leaves from
     across = np.array([-leave[1], leave[0]])
     along = uv @ leave
