@@ -11,6 +11,8 @@ the sources in order:
 3. ``temporal``: per pixel, the mode of the values at quiet moments (Okabe, Anjyo, Onai 2011, "Extracting fluid
    from a video for efficient post-production": the background is seen where a pixel shows little temporal
    change). The mode is symmetric in brightness, so smoke brighter or darker than the backdrop is the same case.
+   Where smoke arrives after frame 0 and stays (a plume's foot), the mode is the smoke; frame 0 is kept there
+   when it is the less smoky of the two (:func:`first_frame_where_smoke_stays`).
 
 Nothing here assumes bright smoke on a dark backdrop or the reverse; thresholds follow the video's own noise.
 """
@@ -36,6 +38,7 @@ MAX_DISAGREEMENT = 0.02  # clean frames may disagree with the seen backdrop at t
 MIN_CLEAN_FRAMES = 2  # fewer leading still frames are no evidence of an empty backdrop
 MAX_MOVING = 0.01  # clean frames (but the last, which sees the smoke arrive) are still at all but this share
 CLEAR_RING = 0.99  # an object is clear in frame 0 when frame 0 shows the backdrop's colour on this share around it
+SIGN_AGREEMENT = 2 / 3  # smoke brightens (or darkens) the backdrop when this share of its pixels agree on it
 
 
 @dataclass(frozen=True)
@@ -94,7 +97,7 @@ def estimate_plate(video: np.ndarray, color: np.ndarray | None = None) -> PlateE
         return color_plate(video, quiet, temporal, np.asarray(color, np.float32), noise)
     if float((temporal.confidence >= CONFIDENT).mean()) < MIN_SEEN_FRACTION:
         raise NeverClear(f"{(temporal.confidence >= CONFIDENT).mean():.2%} of the pixels are ever seen clear")
-    return temporal
+    return first_frame_where_smoke_stays(video, temporal, noise)
 
 
 def clean_frames(frames: np.ndarray, noise: float | None = None) -> PlateEstimate:
@@ -140,6 +143,37 @@ def color_plate(video: np.ndarray, quiet: np.ndarray, temporal: PlateEstimate, c
     detail = {"color": [round(float(c), 6) for c in color], "object_fraction": round(float(obj.mean()), 4),
               "objects_from_first_frame": round(float(clear.mean()), 4)}
     return PlateEstimate(plate, conf, "color", detail)
+
+
+def first_frame_where_smoke_stays(video: np.ndarray, temporal: PlateEstimate, noise: float) -> PlateEstimate:
+    """The temporal estimate with frame 0's value (confidence 1) where the mode is smokier than frame 0.
+
+    Smoke that reaches a pixel after frame 0 and stays there (a continuous plume's foot, a jet's core) is quiet and
+    consistent for most of the video, so the mode takes it for the backdrop; the backdrop was seen once, in frame 0.
+    Smoke changes the backdrop one way: absorbing smoke over a bright backdrop darkens it, glowing smoke brightens
+    it. That way is measured on the pixels that depart from the mode in frames 1 on (outside the pixels where frame 0
+    and the mode disagree) and trusted when ``SIGN_AGREEMENT`` of them agree. Where frame 0 and the mode disagree and
+    the mode is the one changed that way, frame 0 is the backdrop. Where frame 0 holds smoke that leaves later, it is
+    frame 0 that is changed that way and the mode is kept."""
+    tol = _difference(noise)
+    plate = temporal.plate
+    differs = np.abs(video[0] - plate).max(axis=2) >= tol
+    brightness = plate.mean(axis=2)
+    brighter = darker = 0
+    for frame in video[1:]:
+        departs = (np.abs(frame - plate).max(axis=2) >= tol) & ~differs
+        change = frame.mean(axis=2)[departs] - brightness[departs]
+        brighter += int((change > 0).sum())
+        darker += int((change < 0).sum())
+    if max(brighter, darker) < SIGN_AGREEMENT * max(brighter + darker, 1):
+        return temporal
+    sign = 1.0 if brighter > darker else -1.0
+    take = differs & (sign * (brightness - video[0].mean(axis=2)) > 0)
+    if not take.any():
+        return temporal
+    return PlateEstimate(np.where(take[..., None], video[0], plate).astype(np.float32),
+                         np.where(take, 1.0, temporal.confidence).astype(np.float32), "temporal",
+                         {**temporal.detail, "first_frame_fraction": round(float(take.mean()), 4)})
 
 
 def clear_in_first_frame(obj: np.ndarray, color_first: np.ndarray) -> np.ndarray:

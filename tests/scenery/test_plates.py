@@ -116,3 +116,35 @@ def test_known_color_object_covered_by_smoke_most_of_the_time_keeps_its_own_colo
     assert est.source == "color"
     assert np.abs(est.plate - back).max(axis=2)[box].max() < 0.03
     assert np.abs(est.plate - back).max(axis=2)[cloud & ~box].max() < 0.03
+
+
+def _steady_column(kind, frames_with_column):
+    """A textured backdrop (no colour known) with the two sweeping bands of smoke at 0.3 and a steady column of
+    opacity 0.6 in ``frames_with_column``."""
+    back = backdrop(5, kind)
+    yy, xx = np.mgrid[0:48, 0:64]
+    column = (np.abs(xx - 20) < 5) & (yy > 28)
+    alpha = smoke_alpha(5) * 0.3
+    alpha[frames_with_column] = np.maximum(alpha[frames_with_column], np.where(column, 0.6, 0.0))
+    alpha[0] = np.where(column, alpha[0], 0.0) if frames_with_column.start == 0 else 0.0
+    return back, column, estimate_plate(composite(back, alpha, kind))
+
+
+@pytest.mark.parametrize("kind", ["dark", "bright"])
+def test_smoke_that_arrives_in_frame_1_and_stays_is_not_the_backdrop(kind):
+    """A plume's foot: smoke reaches the column's pixels in frame 1 and stays to the end, over a textured backdrop
+    of unknown colour. One clean frame is no clean prefix, and the mode of the column is the smoke; frame 0 shows
+    the backdrop there, and the smoke elsewhere says which way it changes the backdrop."""
+    back, column, est = _steady_column(kind, slice(1, None))
+    assert est.source == "temporal"
+    assert np.abs(est.plate - back).max(axis=2)[column].max() < 0.03
+    assert est.detail["first_frame_fraction"] > 0
+
+
+@pytest.mark.parametrize("kind", ["dark", "bright"])
+def test_smoke_in_frame_0_that_leaves_is_not_taken_from_frame_0(kind):
+    """The reverse: the column holds smoke in frames 0-9 and then leaves; the backdrop behind it is the mode of
+    the later frames, and frame 0 (the smoky one) is not used there."""
+    back, column, est = _steady_column(kind, slice(0, 10))
+    assert est.source == "temporal"
+    assert np.abs(est.plate - back).max(axis=2)[column].max() < 0.03
