@@ -27,14 +27,15 @@ the radius ratio, found speed / true inflow speed, the start frame. Obstacles: r
 for each true one, in the true body's size (radius or half-diagonal).
 
 A step that fails (the tool's exit 2) makes a failed row with the tool's one-line message; it counts as beating no
-reference. The single video's floor is stated as a user would state it: every source of the family floats in its box
-(plumes start 8-30 % up it, jets 20-55 %, puffs 70-85 %: benchmarks/scenes/spec.py), so the volume's bottom face,
-synth's default floor, is never where the smoke starts, and one view cannot show how far along its rays the nozzle
-is. Before ``synth`` the table declares the floor at the nozzle's height (scene.json ``floor``: the horizontal
-plane through the true source's centre, one number of the truth; none where the true source sits on the volume's
-floor) and synth finds the rest from the input view; the row is marked "floor declared" (W/seedN/single-view/
-floor_declared.txt and the row's ``floor_declared`` say why). Where synth refuses even that floor (a foot's ray that
-misses it), the row fails with the tool's message. A scene is prepared again from scratch
+reference. The single video's heights are stated as a user would state them: every source of the family floats in its
+box (plumes start 8-30 % up it, jets 20-55 %, puffs 70-85 %: benchmarks/scenes/spec.py), so the volume's bottom face,
+synth's default plane, is never where the smoke starts, and one view cannot show how far along its rays the nozzle
+is; and a room's floor (a wall backdrop) lies below the volume, where the static layer should lay it. Before
+``synth`` the table states, from the truth, the room's floor (scene.json ``floor``: the horizontal plane of the
+room's floor, for wall and set backdrops) and the nozzle's height above it (``source_height``; none where the
+source sits on the floor, within its radius), and synth finds the rest from the input view; the row is marked
+"stated" (W/seedN/single-view/stated.txt and the row's ``stated`` say what). Where synth refuses even so (a foot's
+ray that misses the plane), the row fails with the tool's message. A scene is prepared again from scratch
 unless every preparation step of an earlier run succeeded (W/seedN/PROTOCOL/prepared.json).
 ``--rescore`` computes the scores again from the runs and eval.json files already in W (steps not re-run, their
 timings kept; failed rows stay as they are). Results go to W/results/seedN-PROTOCOL.json (kept, so the development
@@ -68,7 +69,7 @@ from benchmarks.scenes.splits import SPLITS, HeldOutError  # noqa: E402
 # the demo's reduced recon settings (cli/demo.py): a scene in minutes on a 2-core CPU
 FAST_RECON = "--init-iters 150 --dynamics-iters 12 --appearance-iters 8 --stabilization-steps 10 --static-iters 150"
 PROTOCOLS = ("four-view", "single-view")
-DECLARED = "floor_declared.txt"  # why the table declared the single video's floor (a user's statement)
+STATED = "stated.txt"  # what the table stated for the single video (the room's floor, the nozzle's height)
 
 
 def references(scene: Path, frames: tuple, size: tuple, channels: int) -> dict:
@@ -115,7 +116,7 @@ def prepare_scene(capture: Path, truth: dict, protocol: str, work: Path, log: Pa
     if done.exists():  # every step of an earlier run succeeded
         return json.loads(done.read_text())
     shutil.rmtree(scene, ignore_errors=True)  # what a failed step of an earlier run left
-    (work / DECLARED).unlink(missing_ok=True)
+    (work / STATED).unlink(missing_ok=True)
     cmd = ["calibrate", "--from-pinf", capture / "info.json", "--input", roles["input"], "--ground-truth",
            roles["ground_truth"], *truth["calibrate_args"], "--out", scene]
     if "novel" in roles:
@@ -127,24 +128,32 @@ def prepare_scene(capture: Path, truth: dict, protocol: str, work: Path, log: Pa
             plates = [t for n in roles["input"].split(",") for t in ("--plate", f"{n}={capture / 'plates' / n}.png")]
         steps["background"] = timed_command(["background", scene, *plates], log)
     if protocol == "single-view":
-        declare_floor(scene, truth, work / DECLARED)
+        state_heights(scene, truth, work / STATED)
         steps["synth"] = timed_command(["synth", scene], log)
         steps["refine"] = timed_command(["refine", scene], log)
     done.write_text(json.dumps(steps))
     return steps
 
 
-def declare_floor(scene: Path, truth: dict, record: Path) -> None:
-    """The user's statement of the nozzle's height: scene.json ``floor`` through the true source's centre (the
-    module docstring), unless the true source sits on the volume's floor (within its radius); why goes to ``record``."""
-    source, floor = truth["source"], truth["volume"]["min"][1]
-    if source["center"][1] - floor <= source["radius"]:
-        return
+def state_heights(scene: Path, truth: dict, record: Path) -> None:
+    """The user's statements (module docstring): scene.json ``floor`` at the room's floor where the backdrop is a
+    room, ``source_height`` where the true source stands above that floor by more than its radius; what was stated
+    goes to ``record``."""
+    source, room = truth["source"], truth["backdrop"].get("room")
+    floor = room[0][1] if room is not None else truth["volume"]["min"][1]
     spec = json.loads((scene / "scene.json").read_text())
-    spec["floor"] = {"point": source["center"], "normal": [0.0, 1.0, 0.0]}
-    (scene / "scene.json").write_text(json.dumps(spec, indent=1))
-    record.write_text(f"the nozzle {source['center'][1] - floor:.4g} m above the volume's floor: the floor declared at "
-                      "its height\n")
+    said = []
+    if room is not None:
+        spec["floor"] = {"point": [source["center"][0], floor, source["center"][2]], "normal": [0.0, 1.0, 0.0]}
+        said.append(f"the room's floor at y = {floor:.4g} m ({truth['volume']['min'][1] - floor:.4g} m below the "
+                    "volume)")
+    height = source["center"][1] - floor
+    if height > source["radius"]:
+        spec["source_height"] = height
+        said.append(f"the nozzle {height:.4g} m above the floor")
+    if said:
+        (scene / "scene.json").write_text(json.dumps(spec, indent=1))
+        record.write_text("; ".join(said) + "\n")
 
 
 def one(seed: int, protocol: str, args) -> dict:
@@ -187,7 +196,7 @@ def one(seed: int, protocol: str, args) -> dict:
                                      channels),
             "source": source_score(info["source"], truth["source"], truth["length_m"]),
             "source_finder": info.get("source_finder"),
-            "floor_declared": (pwork / DECLARED).read_text().strip() if (pwork / DECLARED).exists() else None,
+            "stated": (pwork / STATED).read_text().strip() if (pwork / STATED).exists() else None,
             "obstacles": obstacle_score(info.get("found_obstacles", []), truth["obstacles"]),
             "steps": steps,
             "seconds": round(sum(s["seconds"] for s in steps.values()), 1),
@@ -212,7 +221,7 @@ def table(results: list) -> str:
         s, ref, src, ob = r["scene"], r["references"], r["source"], r["obstacles"]
         scene = (f"{s['source']} {s['window']}, {s['backdrop']}/{s['smoke']}, {s['layout']} {s['elevation']}"
                  f"{' moving' if s['moving'] else ''}, {s['unit']} {s['up']}-up, {s['length_m']:.2f} m")
-        protocol = r["protocol"] + (" (floor declared)" if r.get("floor_declared") else "")
+        protocol = r["protocol"] + (" (stated)" if r.get("stated") else "")
         rows.append(f"| {r['seed']} | {r['split']} | {protocol} | {scene} | {fmt(r['nvs']['psnr'])} / "
                     f"{fmt(r['nvs']['ssim'], '.3f')} | {fmt(ref['black']['psnr'])} / {fmt(ref['black']['ssim'], '.3f')}"
                     f" | {fmt(ref['frame0_held']['psnr'])} / {fmt(ref['frame0_held']['ssim'], '.3f')} | "
@@ -235,7 +244,7 @@ def means(results: list) -> dict:
             m = lambda f: float(np.mean([f(r) for r in rs]))  # noqa: E731
             out[f"{split}/{protocol}"] = {
                 "scenes": len(every), "failed": len(every) - len(rs),
-                "floor_declared": sum(bool(r.get("floor_declared")) for r in rs),
+                "stated": sum(bool(r.get("stated")) for r in rs),
                 "nvs_psnr": m(lambda r: r["nvs"]["psnr"]), "nvs_ssim": m(lambda r: r["nvs"]["ssim"]),
                 "black_psnr": m(lambda r: r["references"]["black"]["psnr"]),
                 "frame0_psnr": m(lambda r: r["references"]["frame0_held"]["psnr"]),
@@ -249,7 +258,7 @@ def means(results: list) -> dict:
 
 
 def means_table(summary: dict) -> str:
-    keys = [("scenes", "d"), ("failed", "d"), ("floor_declared", "d"), ("nvs_psnr", ".2f"), ("nvs_ssim", ".3f"),
+    keys = [("scenes", "d"), ("failed", "d"), ("stated", "d"), ("nvs_psnr", ".2f"), ("nvs_ssim", ".3f"),
             ("black_psnr", ".2f"), ("frame0_psnr", ".2f"),
             ("beats_black", "d"), ("beats_frame0", "d"), ("source_err_radii", ".1f"), ("source_err_box", ".2f"),
             ("direction_err_deg", ".0f"), ("seconds", ".0f"), ("peak_mib", ".0f")]

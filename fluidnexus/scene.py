@@ -108,7 +108,8 @@ class Source:
 class Floor:
     """The plane the scene stands on: through ``point``, ``normal`` (unit) pointing up out of it. From one view the
     depth of the smoke is not observed; where no source is declared, the plume is taken to leave something standing
-    on this floor (``gen/plume_foot.py``)."""
+    on this floor, or ``Scene.source_height`` above it (``Scene.source_plane``, ``gen/plume_foot.py``). The static
+    layer of a single view lays the floor it sees on this plane."""
 
     point: tuple[float, float, float]
     normal: tuple[float, float, float] = UP
@@ -117,19 +118,19 @@ class Floor:
         return {"point": list(self.point), "normal": list(self.normal)}
 
     @classmethod
-    def from_dict(cls, data, path=None, volume: "Volume | None" = None, fld: str = "floor") -> "Floor":
-        """Parse and check a floor record: a non-zero normal, and a plane that meets ``volume`` (when given)."""
+    def from_dict(cls, data, path=None, fld: str = "floor") -> "Floor":
+        """Parse and check a floor record: a non-zero normal (the plane may lie below the volume: a room's floor)."""
         if not isinstance(data, dict) or "point" not in data:
             raise InputError(path, fld, "expected {point: [x, y, z], normal?: [nx, ny, nz]} (normal default up)")
         n = np.asarray(_triple(data.get("normal", UP), path, f"{fld}.normal"))
         norm = float(np.linalg.norm(n))
         if norm < 1e-9:
             raise InputError(path, f"{fld}.normal", f"has zero length ({n.tolist()})")
-        floor = cls(_triple(data["point"], path, f"{fld}.point"), tuple(float(v) for v in n / norm))
-        if volume is not None and not floor.meets(volume):
-            raise InputError(path, fld, f"the plane through {list(floor.point)} with normal {list(floor.normal)} "
-                                        f"lies outside the volume {list(volume.min)}..{list(volume.max)}")
-        return floor
+        return cls(_triple(data["point"], path, f"{fld}.point"), tuple(float(v) for v in n / norm))
+
+    def raised(self, height: float) -> "Floor":
+        """The parallel plane ``height`` above this one (along the normal)."""
+        return Floor(tuple(float(v) for v in np.asarray(self.point) + height * np.asarray(self.normal)), self.normal)
 
     def meets(self, volume: "Volume") -> bool:
         """Whether the plane passes through the box ``volume`` (its faces included)."""
@@ -229,12 +230,19 @@ class Scene:
     source_frame: SourceFrame | None = None  # None: the scene is its own source frame (world_frame.py)
     backdrop_color: tuple[float, float, float] | None = None  # a known backdrop colour (PINF frame_bkg_color)
     floor: Floor | None = None  # declared in scene.json; ``ground()`` also gives the default
+    source_height: float = 0.0  # scene.json: how far above the floor the plume leaves (``source_plane()``)
 
     def ground(self) -> Floor | None:
         """The floor the plume stands on: the declared one, else the volume's bottom face (normal up), else None."""
         if self.floor is not None:
             return self.floor
         return None if self.volume is None else Floor(tuple(float(v) for v in self.volume.bottom_center))
+
+    def source_plane(self) -> Floor | None:
+        """The plane a single video's plume is taken to leave from where no source is declared: the floor, raised
+        by ``source_height`` (a nozzle on a stand)."""
+        floor = self.ground()
+        return None if floor is None else floor.raised(self.source_height)
 
     def view(self, name: str) -> View:
         for v in self.views:
@@ -425,12 +433,23 @@ def load_scene(path: str | Path, check_videos: bool = True) -> Scene:
     if not views:
         raise InputError(scene_file, "views", "the scene has no views")
     volume = _parse_volume(data.get("volume"), scene_file)
-    floor = None if data.get("floor") is None else Floor.from_dict(data["floor"], scene_file, volume)
+    floor = None if data.get("floor") is None else Floor.from_dict(data["floor"], scene_file)
+    source_height = data.get("source_height", 0.0)
+    if isinstance(source_height, bool) or require_finite(source_height, scene_file, "source_height").ndim != 0:
+        raise InputError(scene_file, "source_height", f"expected a number (scene units), got {source_height!r}")
+    source_height = float(source_height)
     scene = Scene(root, fps, frame_count, tuple(views), volume, _parse_source(data.get("source"), scene_file),
                   data.get("extra", {}), _parse_backgrounds(data.get("backgrounds"), views, root, scene_file,
                                                             check_videos),
                   **_parse_frame_and_backdrop(data, scene_file),
-                  obstacles=parse_obstacles(data.get("obstacles"), scene_file, volume, root), floor=floor)
+                  obstacles=parse_obstacles(data.get("obstacles"), scene_file, volume, root), floor=floor,
+                  source_height=source_height)
+    plane = scene.source_plane()
+    if volume is not None and plane is not None and not plane.meets(volume):
+        raise InputError(scene_file, "source_height" if source_height else "floor",
+                         f"the plane the plume leaves from (through {[round(v, 6) for v in plane.point]}, normal "
+                         f"{list(plane.normal)}: the floor raised by source_height {source_height:g}) lies outside "
+                         f"the volume {list(volume.min)}..{list(volume.max)}")
     if check_videos:
         check_media(root, scene_file, frame_count,
                     [(f"views[{i}].video", v.video, v.camera) for i, v in enumerate(views) if v.video])
@@ -512,6 +531,8 @@ def scene_dict(scene: Scene, ground_truth: tuple[GroundTruth, ...] = ()) -> dict
         out["backdrop_color"] = list(scene.backdrop_color)
     if scene.floor is not None:
         out["floor"] = scene.floor.to_dict()
+    if scene.source_height:
+        out["source_height"] = scene.source_height
     return out
 
 

@@ -60,6 +60,10 @@ def test_pipeline_loader_does_not_expose_ground_truth(scene_dir):
     (lambda d: d["views"][0]["camera"]["K"][1].__setitem__(1, float("inf")), "views[0].camera.K"),
     (lambda d: d["volume"].__setitem__("max", [0.2, -1, 0.2]), "volume"),
     (lambda d: d.__setitem__("views", []), "views"),
+    (lambda d: d.__setitem__("source_height", "high"), "source_height"),
+    (lambda d: d.__setitem__("source_height", True), "source_height"),
+    (lambda d: d.__setitem__("source_height", 0.9), "source_height"),  # the raised plane misses the volume
+    (lambda d: d.__setitem__("floor", {"point": [0, 2, 0]}), "floor"),  # a plume on it would start above the box
 ])
 def test_bad_scene_json_names_the_field(scene_dir, change, field):
     edit(scene_dir, change)
@@ -129,3 +133,14 @@ def test_save_views_keeps_ground_truth(scene_dir, make_video):
     assert [v.name for v in again.usable_views()] == ["a", "b"]
     assert again.view("b").provenance == {"method": "test"}
     assert [g.name for g in load_ground_truth(scene_dir)] == ["b"]
+
+
+def test_a_floor_below_the_volume_and_a_source_height_above_it(scene_dir):
+    """A room's floor may lie below the volume (the static layer lays the ground there); the plume leaves from the
+    plane ``source_height`` above it, which must cross the volume."""
+    edit(scene_dir, lambda d: d.update(floor={"point": [0, -0.5, 0]}, source_height=0.6))
+    scene = load_scene(scene_dir)
+    assert scene.ground().point == (0.0, -0.5, 0.0)
+    np.testing.assert_allclose(scene.source_plane().point, (0.0, 0.1, 0.0))
+    save_scene(scene)
+    assert load_scene(scene_dir).source_height == 0.6

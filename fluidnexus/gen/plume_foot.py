@@ -2,8 +2,10 @@
 
 From a single video the depth of the smoke along the input rays is not observed: any plume on the input ray through
 each pixel looks the same. The tool fixes it with one stated assumption: the smoke leaves something that stands on
-the scene's floor (``Scene.ground``: the declared ``floor`` of scene.json, else the volume's bottom face). So the
-input ray through the foot of the earliest smoke meets the floor at the source:
+the scene's floor (``Scene.ground``: the declared ``floor`` of scene.json, else the volume's bottom face), or a
+stated ``source_height`` above it (``Scene.source_plane``: a nozzle on a stand; the floor itself stays where the
+static layer lays what it sees of the ground). So the input ray through the foot of the earliest smoke meets that
+plane ("the floor" below) at the source:
 
 1. the earliest frame in which at least ``MIN_PIXELS`` pixels differ from what the view sees behind the smoke by
    more than ``THRESHOLD`` (``scenery.backdrop.smoke_mask``);
@@ -12,7 +14,7 @@ input ray through the foot of the earliest smoke meets the floor at the source:
    a pixel and more than it moves across (a puff from a nozzle above: the end is its top). The end is the smoke's
    ``FOOT_PERCENTILE`` extent along down (or up), robust to a few noisy pixels, centred across the band of smoke
    pixels within ``FOOT_BAND`` of it;
-3. the end pixel's ray meets the floor (for a puff, the plane of its nozzle that the user declares) at a rim of the
+3. the end pixel's ray meets the floor (for a puff, the plane of its nozzle: ``source_height``) at a rim of the
    inflow: the rim nearest the camera where the camera looks at the end from the side the smoke leaves to (seen
    from above, the lowest smoke in the image is the near rim), else the far rim. The band's width at that depth
    gives the radius, and the centre lies one radius beyond the near rim along the ray's horizontal direction (one
@@ -119,7 +121,8 @@ def plume_foot(scene: Scene, view_name: str, camera: Camera, footage: np.ndarray
         behind: what the view sees behind the smoke ([C] or [H, W, C]; None: black).
         video: the view's video, for the error messages.
     """
-    floor = scene.ground()
+    floor = scene.source_plane()
+    plane = "the floor" if not scene.source_height else f"the plane {scene.source_height:g} above the floor"
     if floor is None:
         raise InputError(scene.root / SCENE_FILE, "floor", "neither a source, a floor nor a volume: nothing says where "
                                                            "the plume stands (declare one in scene.json)")
@@ -155,22 +158,22 @@ def plume_foot(scene: Scene, view_name: str, camera: Camera, footage: np.ndarray
         hit = _upright_plane_hit(camera, ray, ref, normal)  # the box decides
         hit = np.clip(hit, scene.volume.min, scene.volume.max)
         method = (f"input view: the {end} of the earliest smoke on the upright plane through the volume's centre "
-                  f"facing the camera (its ray meets the floor at {grazing:.1f} degrees, under {MIN_GRAZING_DEG:g}: "
-                  "the floor does not fix the depth)")
+                  f"facing the camera (its ray meets {plane} at {grazing:.1f} degrees, under {MIN_GRAZING_DEG:g}: "
+                  "that plane does not fix the depth)")
         log.warning("synth: %s; declare the source in scene.json where the box's centre is not the plume's", method)
     elif hit is None:
-        raise InputError(scene.root / SCENE_FILE, "floor", f"{where} misses the floor; declare the source or the "
-                                                           "floor in scene.json")
+        raise InputError(scene.root / SCENE_FILE, "floor", f"{where} misses {plane}; declare the source, the floor "
+                                                           "or source_height in scene.json")
     else:
-        method = f"input view: the {end} of the earliest smoke cast onto the floor"
+        method = f"input view: the {end} of the earliest smoke cast onto {plane}"
         if scene.volume is not None:
             lo, hi = np.asarray(scene.volume.min), np.asarray(scene.volume.max)
             tol = 1e-6 * float(np.max(hi - lo))
             if np.any(hit < lo - tol) or np.any(hit > hi + tol):
                 box = f"{list(scene.volume.min)}..{list(scene.volume.max)}"
-                raise InputError(scene.root / SCENE_FILE, "floor", f"{where} meets the floor at "
-                                 f"{np.round(hit, 4).tolist()}, outside the volume {box}: the smoke does not start on "
-                                 "the floor; declare the source or the floor in scene.json")
+                raise InputError(scene.root / SCENE_FILE, "floor", f"{where} meets {plane} at "
+                                 f"{np.round(hit, 4).tolist()}, outside the volume {box}: the smoke does not start "
+                                 f"on {plane}; declare the source, the floor or source_height in scene.json")
     hit_depth = float(camera.project(hit[None])[1][0])
     half_width = max(1.0, float(np.sqrt(2.0) * np.std(lateral)))  # a uniform disk's rms, as the hull finder
     radius = half_width * hit_depth / float(camera.K[0, 0])
@@ -182,6 +185,6 @@ def plume_foot(scene: Scene, view_name: str, camera: Camera, footage: np.ndarray
     source = Source(tuple(float(v) for v in hit), radius)
     record = {"method": method, "view": view_name, "frame": t0, "pixel": [round(float(v), 2) for v in pixel],
               "end": end, "grazing_deg": round(grazing, 2), "floor": floor.to_dict(),
-              "floor_declared": scene.floor is not None,
+              "floor_declared": scene.floor is not None, "source_height": scene.source_height,
               "center": list(source.center), "radius": radius}
     return PlumeFoot(source, record)

@@ -86,12 +86,22 @@ def test_a_foot_ray_that_misses_the_floor_or_meets_it_outside_the_volume_is_refu
         find(downward, floating)
 
 
-def test_a_floor_outside_the_volume_is_refused():
-    with pytest.raises(InputError, match="outside the volume"):
-        Floor.from_dict({"point": [0.0, -2.0, 0.0]}, "scene.json", VOLUME)
+def test_a_floor_record_is_checked_and_its_normal_made_unit():
     with pytest.raises(InputError, match="zero length"):
-        Floor.from_dict({"point": [0.0, 0.0, 0.0], "normal": [0, 0, 0]}, "scene.json", VOLUME)
-    assert Floor.from_dict({"point": [0.0, 0.5, 0.0], "normal": [0, 2, 0]}, "scene.json", VOLUME).normal == (0, 1, 0)
+        Floor.from_dict({"point": [0.0, 0.0, 0.0], "normal": [0, 0, 0]}, "scene.json")
+    assert Floor.from_dict({"point": [0.0, 0.5, 0.0], "normal": [0, 2, 0]}, "scene.json").normal == (0, 1, 0)
+
+
+def test_a_stated_source_height_is_the_plane_cast_onto_and_the_floor_stays():
+    camera = Camera.look_at(W, H, 150.0, eye=(0.3, 0.9, 1.6), target=(0.1, 0.4, 0.0))
+    raised = np.array([FOOT[0], 0.2, FOOT[2]])
+    scene = Scene(Path("/nonexistent"), 30.0, 3, (View("cam", "input", camera, "videos/cam.mp4"),), VOLUME,
+                  source_height=0.2)
+    found = plume_foot(scene, "cam", camera, footage(camera, column(raised, RADIUS, 0.2, 0.45)), None,
+                       Path("cam.mp4"))
+    np.testing.assert_allclose(found.source.center, raised, atol=0.02)
+    assert "the plane 0.2 above the floor" in found.record["method"] and found.record["source_height"] == 0.2
+    np.testing.assert_allclose(scene.ground().point, VOLUME.bottom_center)  # the static layer's floor stays
 
 
 def puff_footage(camera: Camera, nozzle: np.ndarray, frames: int = 6) -> np.ndarray:
@@ -104,12 +114,13 @@ def puff_footage(camera: Camera, nozzle: np.ndarray, frames: int = 6) -> np.ndar
 
 @pytest.mark.parametrize("eye", [(0.3, 0.2, 1.6), (0.3, 1.3, 1.6)], ids=["below-the-nozzle", "above-it"])
 def test_a_puff_from_a_nozzle_above_is_cast_from_its_top(eye):
-    # a downward puff: its foot moves away from the nozzle, so the end cast onto the nozzle's declared plane is its
+    # a downward puff: its foot moves away from the nozzle, so the end cast onto the nozzle's stated plane is its
     # top, seen from below the plane (a level camera under a ceiling nozzle) and from above it
     nozzle = np.array([FOOT[0], 0.8, FOOT[2]])
     camera = Camera.look_at(W, H, 150.0, eye=eye, target=(0.1, 0.6, 0.0))
-    floor = Floor((0.0, 0.8, 0.0))
-    found = plume_foot(scene_for(camera, floor), "cam", camera, puff_footage(camera, nozzle), None, Path("cam.mp4"))
+    scene = Scene(Path("/nonexistent"), 30.0, 3, (View("cam", "input", camera, "videos/cam.mp4"),), VOLUME,
+                  source_height=0.8)
+    found = plume_foot(scene, "cam", camera, puff_footage(camera, nozzle), None, Path("cam.mp4"))
     assert found.record["end"] == "top" and "top of the earliest smoke" in found.record["method"]
     np.testing.assert_allclose(found.source.center, nozzle, atol=0.02)  # 2 % of the box
     assert found.source.radius == pytest.approx(RADIUS, rel=0.5)

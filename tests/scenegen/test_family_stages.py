@@ -9,8 +9,8 @@ frame 0 held, dB; source error in source radii):
 - 1128, a continuous plume glowing on black, four cameras on an arc: 31.57 / 23.20 / 23.23, 0.7
 - 1121, a sideways jet absorbing on white, a ring: 34.61 / 0.03 / 28.13, 0.9
 - 1133, a burst (puff) glowing on black, a ring: 29.32 / 24.67 / 24.95, 1.0
-- 1128's single video (train01 in, three views synthesised; the floor declared at the nozzle's height, as the
-  table does since 2026-11-28): 27.66 / 23.20 / 23.23, 1.6
+- 1128's single video (train01 in, three views synthesised; the nozzle's height stated, scene.json
+  source_height, as the table does since 2026-11-28): 27.66 / 23.20 / 23.23, 1.6
 
 Not held here: a textured room (seed 1109, a jet on a wall: 24.42 dB under frame 0 held's 32.47; the static
 world from the held-out camera decides it, BENCHMARKS.md "The generated scene family").
