@@ -12,7 +12,8 @@ the sources in order:
    from a video for efficient post-production": the background is seen where a pixel shows little temporal
    change). The mode is symmetric in brightness, so smoke brighter or darker than the backdrop is the same case.
    Where smoke arrives after frame 0 and stays (a plume's foot), the mode is the smoke; frame 0 is kept there
-   when it is the less smoky of the two (:func:`first_frame_where_smoke_stays`).
+   when it is the less smoky of the two (:func:`first_frame_where_smoke_stays`). The sources above use this
+   corrected estimate too (the colour source for its static objects).
 
 Nothing here assumes bright smoke on a dark backdrop or the reverse; thresholds follow the video's own noise.
 """
@@ -88,7 +89,7 @@ def estimate_plate(video: np.ndarray, color: np.ndarray | None = None) -> PlateE
     """
     noise = noise_level(video)
     quiet = quiet_mask(video, noise)
-    temporal = temporal_mode(video, quiet, noise)
+    temporal = first_frame_where_smoke_stays(video, temporal_mode(video, quiet, noise), noise)
     first_change = clean_prefix(video, noise)
     still = quiet[:first_change] if first_change == len(video) else quiet[:first_change - 1]
     if _is_clean(video[:first_change], still, temporal, noise):
@@ -97,7 +98,7 @@ def estimate_plate(video: np.ndarray, color: np.ndarray | None = None) -> PlateE
         return color_plate(video, quiet, temporal, np.asarray(color, np.float32), noise)
     if float((temporal.confidence >= CONFIDENT).mean()) < MIN_SEEN_FRACTION:
         raise NeverClear(f"{(temporal.confidence >= CONFIDENT).mean():.2%} of the pixels are ever seen clear")
-    return first_frame_where_smoke_stays(video, temporal, noise)
+    return temporal
 
 
 def clean_frames(frames: np.ndarray, noise: float | None = None) -> PlateEstimate:

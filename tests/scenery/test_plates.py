@@ -80,10 +80,13 @@ def test_known_color_keeps_an_object_whole_under_smoke_that_never_leaves_part_of
     assert est.confidence[disk & (xx == 32)].max() < 0.5  # ... flagged unsure where never seen
 
 
-def _steady_smoke_over_white(back: np.ndarray, region: np.ndarray, opacity: float):
+def _steady_smoke_over_white(back: np.ndarray, region: np.ndarray, opacity: float, first: np.ndarray | None = None):
     """The plate of 40 frames of dark smoke over ``back`` (a white backdrop, [48, 64, 3]): ``region`` covered at
-    ``opacity`` from frame 1 to the end, and some moving smoke elsewhere; the backdrop colour white is known."""
+    ``opacity`` from frame 1 to the end (and ``first`` in frame 0), and some moving smoke elsewhere; the backdrop
+    colour white is known."""
     alpha = np.zeros((40, 48, 64), np.float32)
+    if first is not None:
+        alpha[0] = np.where(first, opacity, 0.0)
     alpha[1:] = np.where(region, opacity, 0.0)
     alpha[1:] += smoke_alpha(3, frames=39) * 0.3
     return estimate_plate(composite(back, np.clip(alpha, 0, 1), "dark"), np.ones(3, np.float32))
@@ -148,3 +151,18 @@ def test_smoke_in_frame_0_that_leaves_is_not_taken_from_frame_0(kind):
     back, column, est = _steady_column(kind, slice(0, 10))
     assert est.source == "temporal"
     assert np.abs(est.plate - back).max(axis=2)[column].max() < 0.03
+
+
+def test_known_color_object_under_steady_smoke_with_smoke_beside_it_in_frame_0():
+    """As above, but frame 0 already holds a puff beside the box (a pipe's first breath), so frame 0 does not show
+    the backdrop all around the box. The box's mode is still the smoke that arrived after frame 0 and stayed, and
+    frame 0 shows the box clear: the plate holds the box as frame 0 shows it."""
+    yy, xx = np.mgrid[0:48, 0:64]
+    back = np.ones((48, 64, 3), np.float32)
+    box = (np.abs(xx - 32) < 6) & (np.abs(yy - 24) < 6)
+    back[box] = (0.2, 0.6, 0.25)
+    cloud = (np.abs(xx - 30) < 12) & (np.abs(yy - 24) < 10)
+    puff = (np.abs(xx - 41) < 3) & (np.abs(yy - 24) < 4)  # over the box's ring, not the box
+    est = _steady_smoke_over_white(back, cloud, 0.5, first=puff)
+    assert est.source == "color"
+    assert np.abs(est.plate - back).max(axis=2)[box].max() < 0.03
