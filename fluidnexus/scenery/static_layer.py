@@ -252,7 +252,7 @@ def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backd
         spacing.append(np.abs(z) * camera.width / cfg.rays / camera.K[0, 0])
     info = {}
     if len(cameras) == 1 and anchor is not None and not _textured(plates[0], confidences[0], background, cfg):
-        up = cameras[0].R[1] * -1.0 if floor is None else floor.normal  # the image's up where no floor is given
+        up = -cameras[0].R[1] if floor is None else floor.normal  # the image's up where no floor is given
         p, c, s = object_seeds(cameras[0], plates[0], confidences[0], background, anchor, cfg.plain,
                                cfg.max_gaussians // 2, up)
         points.append(p)

@@ -53,15 +53,15 @@ def _lattice(camera, patches: list, stride: int, metres_per_px: float, z0: float
     out = []
     for rows, cols in patches:
         axis_px = [0.5 * (cols.min() + cols.max() + 1), 0.5 * (rows.min() + rows.max() + 1)]
-        axis = camera.unproject(np.array([axis_px]), np.array([z0]))[0]
+        o = camera.center - camera.unproject(np.array([axis_px]), np.array([z0]))[0]  # the camera from the axis
+        oh = o - (o @ up) * up  # its part across the axis
         for row in np.unique(rows[rows % stride == 0]):
             in_row = cols[rows == row]
             half = 0.5 * (in_row.max() + 1 - in_row.min()) * metres_per_px  # the row's half-width a
             c = in_row[in_row % stride == 0]
             uv = np.stack([c + 0.5, np.full(len(c), row + 0.5)], axis=1)
-            o = camera.center - axis  # the ray X(z) = axis + o + z d, d the direction at camera depth 1
-            d = camera.unproject(uv, np.ones(len(c))) - camera.center
-            oh, dh = o - (o @ up) * up, d - (d @ up)[:, None] * up[None]  # their parts across the axis
+            d = camera.unproject(uv, np.ones(len(c))) - camera.center  # the ray X(z) = axis + o + z d
+            dh = d - (d @ up)[:, None] * up[None]
             aa, bb, cc = np.maximum((dh * dh).sum(axis=1), 1e-12), dh @ oh, float(oh @ oh) - half ** 2
             mid = -bb / aa  # where the ray comes nearest the axis
             reach = np.sqrt(np.maximum(bb * bb - aa * cc, 0.0)) / aa  # half the chord inside |X_h| <= a
