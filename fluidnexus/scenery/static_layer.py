@@ -49,6 +49,7 @@ from ..progress import progress
 from ..scene_scale import box_size
 from .static_hull import hull_points, in_box
 from .stereo import DepthMap, StereoConfig, depth_maps
+from .view_floor import floor_pixels, unseen_floor_seeds
 from .view_objects import object_seeds
 
 STATIC_FILE = "static.npz"
@@ -236,6 +237,12 @@ def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backd
     if len(sure) == 0:
         raise InputError(None, "backgrounds", "every plate pixel has confidence under 0.5: nothing to fit")
     background = np.median(sure, axis=0) if backdrop is None else _channels(backdrop, sure.shape[-1])
+    alone = len(cameras) == 1 and floor is not None and _textured(plates[0], confidences[0], background, cfg)
+    radius = shell_radius(cameras, lo, hi, cfg)
+    if alone and backdrop is None:
+        mask = floor_pixels(cameras[0], confidences[0], floor, 0.5 * (lo + hi), radius)
+        if mask is not None:
+            background = np.asarray(plates[0], np.float64)[(confidences[0] >= 0.5) & ~mask].mean(axis=0)
     depths = depth_maps(cameras, plates, confidences, lo, hi, cfg.stereo)
     nodes, node_colors = hull_points(depths, lo, hi, background, cfg.lattice, cfg.plain,
                                      inner_tolerance=cfg.inner_tolerance, views_needed=cfg.hull_views)
@@ -250,6 +257,12 @@ def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backd
         # each seed as wide as its ray's pixel footprint at its depth
         _, z = camera.project(p)
         spacing.append(np.abs(z) * camera.width / cfg.rays / camera.K[0, 0])
+    if alone:
+        p, c, s = unseen_floor_seeds(cameras[0], plates[0], confidences[0], floor, 0.5 * (lo + hi), radius,
+                                     0.5 * float(np.linalg.norm(hi - lo)), cfg.rays * cfg.rays)
+        points.append(p)
+        colors.append(c)
+        spacing.append(s)
     info = {}
     if len(cameras) == 1 and anchor is not None and not _textured(plates[0], confidences[0], background, cfg):
         up = -cameras[0].R[1] if floor is None else floor.normal  # the image's up where no floor is given
