@@ -151,30 +151,65 @@ def first_frame_where_smoke_stays(video: np.ndarray, temporal: PlateEstimate, no
 
     Smoke that reaches a pixel after frame 0 and stays there (a continuous plume's foot, a jet's core) is quiet and
     consistent for most of the video, so the mode takes it for the backdrop; the backdrop was seen once, in frame 0.
-    Smoke changes the backdrop one way: absorbing smoke over a bright backdrop darkens it, glowing smoke brightens
-    it. That way is measured on the pixels that depart from the mode in frames 1 on (outside the pixels where frame 0
-    and the mode disagree) and trusted when ``SIGN_AGREEMENT`` of them agree. Where frame 0 and the mode disagree and
-    the mode is the one changed that way, frame 0 is the backdrop. Where frame 0 holds smoke that leaves later, it is
-    frame 0 that is changed that way and the mode is kept."""
+    Smoke changes the backdrop one way, measured on the pixels that depart from the mode in frames 1 on (outside
+    the pixels where frame 0 and the mode disagree): absorbing smoke over a bright backdrop darkens it, glowing smoke
+    brightens it, trusted when ``SIGN_AGREEMENT`` of those pixels agree. Coloured smoke may brighten one backdrop
+    and darken another; then the way is towards the smoke's colour (:func:`_smoke_colour`: where the lines along
+    which those pixels depart meet), trusted when ``SIGN_AGREEMENT`` of them depart towards it. Where frame 0 and
+    the mode disagree and the mode is the one changed that way (the brighter, the darker, or the nearer the
+    smoke's colour), frame 0 is the backdrop. Where frame 0 holds smoke that leaves later, it is frame 0 that is
+    changed that way and the mode is kept."""
     tol = _difference(noise)
     plate = temporal.plate
     differs = np.abs(video[0] - plate).max(axis=2) >= tol
     brightness = plate.mean(axis=2)
     brighter = darker = 0
+    before, after = [], []
     for frame in video[1:]:
         departs = (np.abs(frame - plate).max(axis=2) >= tol) & ~differs
         change = frame.mean(axis=2)[departs] - brightness[departs]
         brighter += int((change > 0).sum())
         darker += int((change < 0).sum())
-    if max(brighter, darker) < SIGN_AGREEMENT * max(brighter + darker, 1):
-        return temporal
-    sign = 1.0 if brighter > darker else -1.0
-    take = differs & (sign * (brightness - video[0].mean(axis=2)) > 0)
+        before.append(plate[departs])
+        after.append(frame[departs])
+    if max(brighter, darker) >= SIGN_AGREEMENT * max(brighter + darker, 1):
+        sign = 1.0 if brighter > darker else -1.0
+        take = differs & (sign * (brightness - video[0].mean(axis=2)) > 0)
+        way = "brightness"
+    else:
+        colour = _smoke_colour(np.concatenate(before).astype(np.float64), np.concatenate(after).astype(np.float64))
+        if colour is None:
+            return temporal
+        take = differs & (np.linalg.norm(plate - colour, axis=2) < np.linalg.norm(video[0] - colour, axis=2))
+        way = "colour"
     if not take.any():
         return temporal
     return PlateEstimate(np.where(take[..., None], video[0], plate).astype(np.float32),
                          np.where(take, 1.0, temporal.confidence).astype(np.float32), "temporal",
-                         {**temporal.detail, "first_frame_fraction": round(float(take.mean()), 4)})
+                         {**temporal.detail, "first_frame_fraction": round(float(take.mean()), 4),
+                          "smoke_changes": way})
+
+
+def _smoke_colour(before: np.ndarray, after: np.ndarray) -> np.ndarray | None:
+    """[3] the colour smoke pulls a pixel towards, from pixels that depart from the backdrop (``before`` [N, 3])
+    to ``after`` [N, 3]: in the haze model ``I = B (1 - a) + A a`` every departure lies on the line from its
+    backdrop towards the smoke's colour A, so A is the point nearest all those lines (least squares). None where
+    the lines do not fix a point (all parallel: smoke and backdrops of one hue) or under ``SIGN_AGREEMENT`` of the
+    pixels depart towards it."""
+    step = after - before
+    length = np.linalg.norm(step, axis=1)
+    ok = length > 0
+    if ok.sum() < 3:
+        return None
+    u, b = step[ok] / length[ok, None], before[ok]
+    across = np.eye(3)[None] - u[:, :, None] * u[:, None, :]  # [N, 3, 3] projections across each line
+    m = across.sum(axis=0)
+    eig = np.linalg.eigvalsh(m)
+    if eig[0] < 1e-3 * eig[-1]:
+        return None
+    colour = np.linalg.solve(m, np.einsum("nij,nj->i", across, b))
+    towards = float((((colour - b) * u).sum(axis=1) > 0).mean())
+    return colour if towards >= SIGN_AGREEMENT else None
 
 
 def clear_in_first_frame(obj: np.ndarray, color_first: np.ndarray) -> np.ndarray:

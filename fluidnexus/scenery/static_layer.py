@@ -9,11 +9,13 @@ The fit is a small 3D Gaussian splatting optimisation (Kerbl et al. 2023):
   view sees through (``scenery.static_hull``: a surface without texture, which the stereo cannot place); a ray
   without a confirmed depth seeds on a shell ``shell`` half-diagonals beyond the volume's centre (and beyond every
   input camera, ``shell_cameras``) when its view shows a textured backdrop (which hides the seed from other
-  cameras), and nothing otherwise. A ray or node
+  cameras), and nothing otherwise; a single view over a textured backdrop also seeds the floor it does not see
+  (``scenery.view_floor``). A ray or node
   showing the background colour (within ``plain``) seeds nothing: a plain colour has no depth, and the learned
   background colour already shows it (a white backdrop is not filled with white Gaussians). What lies beyond
   every Gaussian is one learned colour, initialised to the scene's known backdrop colour (PINF's
-  ``frame_bkg_color``: Game's black sky) or else to the plates' median.
+  ``frame_bkg_color``: Game's black sky), else for a single view that shows a floor over a textured backdrop to the
+  mean of its pixels off the floor, else to the plates' median.
 - **Loss** per view: ``0.8 L1 + 0.2 (1 - SSIM)`` (the reconstruction's image loss) weighted by the plate's
   confidence w: the target is ``w plate + (1 - w) render`` and the render's gradient is scaled by w (the render's
   share held fixed), so a pixel of confidence 0 (smoke that never left) pulls nothing and what the plate shows
@@ -228,8 +230,9 @@ def _sees_backdrop(depth: DepthMap, lo: np.ndarray, hi: np.ndarray, cfg: StaticC
 def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backdrop=None, floor=None,
                   anchor=None) -> StaticLayer:
     """The seeds of a fit (module docstring), deterministic in ``cfg.seed``; plate pixels with confidence under
-    0.5 are not read. The background colour is ``backdrop`` (RGB) when given, else the median colour of the sure
-    pixels of every plate. A single view over a plain backdrop with an ``anchor`` seeds its objects' surfaces
+    0.5 are not read. The background colour is ``backdrop`` (RGB) when given, else (a single view over a textured
+    backdrop that shows the floor) the mean colour of its sure pixels off the floor, else the median colour of the
+    sure pixels of every plate. A single view over a plain backdrop with an ``anchor`` seeds its objects' surfaces
     there (``view_objects``)."""
     lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
     generator = torch.Generator().manual_seed(cfg.seed)
@@ -427,7 +430,8 @@ def fit_static(cameras, plates, confidences, lo, hi, cfg: StaticConfig = StaticC
         cfg: settings; ``cfg.seed`` makes the fit deterministic.
         backdrop: a known colour beyond everything (RGB, scene.json ``backdrop_color``: PINF Game's black sky), or
             None for the plates' median colour; what shows it seeds nothing, and the background colour starts at it.
-        floor: the scene's floor (``scene.Floor``), where a single view over a textured backdrop seeds its rays.
+        floor: the scene's floor (``scene.Floor``), where a single view over a textured backdrop seeds its rays
+            and, beyond its frame, the floor it does not see (``view_floor``).
         anchor: where a single view's objects over a plain backdrop stand (a point, metres; ``view_objects``), or
             None: then they seed nothing.
     Returns:
