@@ -164,20 +164,17 @@ def first_frame_where_smoke_stays(video: np.ndarray, temporal: PlateEstimate, no
     differs = np.abs(video[0] - plate).max(axis=2) >= tol
     brightness = plate.mean(axis=2)
     brighter = darker = 0
-    before, after = [], []
     for frame in video[1:]:
         departs = (np.abs(frame - plate).max(axis=2) >= tol) & ~differs
         change = frame.mean(axis=2)[departs] - brightness[departs]
         brighter += int((change > 0).sum())
         darker += int((change < 0).sum())
-        before.append(plate[departs])
-        after.append(frame[departs])
     if max(brighter, darker) >= SIGN_AGREEMENT * max(brighter + darker, 1):
         sign = 1.0 if brighter > darker else -1.0
         take = differs & (sign * (brightness - video[0].mean(axis=2)) > 0)
         way = "brightness"
     else:
-        colour = _smoke_colour(np.concatenate(before).astype(np.float64), np.concatenate(after).astype(np.float64))
+        colour = _smoke_colour(video, plate, differs, tol)
         if colour is None:
             return temporal
         take = differs & (np.linalg.norm(plate - colour, axis=2) < np.linalg.norm(video[0] - colour, axis=2))
@@ -190,26 +187,35 @@ def first_frame_where_smoke_stays(video: np.ndarray, temporal: PlateEstimate, no
                           "smoke_changes": way})
 
 
-def _smoke_colour(before: np.ndarray, after: np.ndarray) -> np.ndarray | None:
-    """[3] the colour smoke pulls a pixel towards, from pixels that depart from the backdrop (``before`` [N, 3])
-    to ``after`` [N, 3]: in the haze model ``I = B (1 - a) + A a`` every departure lies on the line from its
-    backdrop towards the smoke's colour A, so A is the point nearest all those lines (least squares). None where
-    the lines do not fix a point (all parallel: smoke and backdrops of one hue) or under ``SIGN_AGREEMENT`` of the
-    pixels depart towards it."""
-    step = after - before
-    length = np.linalg.norm(step, axis=1)
-    ok = length > 0
-    if ok.sum() < 3:
-        return None
-    u, b = step[ok] / length[ok, None], before[ok]
-    across = np.eye(3)[None] - u[:, :, None] * u[:, None, :]  # [N, 3, 3] projections across each line
-    m = across.sum(axis=0)
+def _smoke_colour(video: np.ndarray, plate: np.ndarray, differs: np.ndarray, tol: float) -> np.ndarray | None:
+    """[3] the colour smoke pulls a pixel towards, from the pixels that depart from the backdrop ``plate`` in frames
+    1 on (outside ``differs``): in the haze model ``I = B (1 - a) + A a`` every departure lies on the line from its
+    backdrop towards the smoke's colour A, so A is the point nearest all those lines (least squares: the sum over
+    lines of the projections across them, accumulated frame by frame). None where the lines do not fix a point (all
+    parallel: smoke and backdrops of one hue) or under ``SIGN_AGREEMENT`` of the pixels depart towards it."""
+    def departures(frame):
+        departs = (np.abs(frame - plate).max(axis=2) >= tol) & ~differs
+        b = plate[departs].astype(np.float64)
+        step = frame[departs].astype(np.float64) - b
+        length = np.linalg.norm(step, axis=1)
+        ok = length > 0
+        return b[ok], step[ok] / length[ok, None]
+
+    m, rhs = np.zeros((3, 3)), np.zeros(3)
+    for frame in video[1:]:  # sum of (I - u u^T) and of (I - u u^T) b over every departing pixel
+        b, u = departures(frame)
+        m += len(u) * np.eye(3) - u.T @ u
+        rhs += b.sum(axis=0) - ((u * b).sum(axis=1)[:, None] * u).sum(axis=0)
     eig = np.linalg.eigvalsh(m)
-    if eig[0] < 1e-3 * eig[-1]:
+    if eig[-1] <= 0 or eig[0] < 1e-3 * eig[-1]:
         return None
-    colour = np.linalg.solve(m, np.einsum("nij,nj->i", across, b))
-    towards = float((((colour - b) * u).sum(axis=1) > 0).mean())
-    return colour if towards >= SIGN_AGREEMENT else None
+    colour = np.linalg.solve(m, rhs)
+    towards = total = 0
+    for frame in video[1:]:
+        b, u = departures(frame)
+        towards += int((((colour - b) * u).sum(axis=1) > 0).sum())
+        total += len(u)
+    return colour if towards >= SIGN_AGREEMENT * max(total, 1) else None
 
 
 def clear_in_first_frame(obj: np.ndarray, color_first: np.ndarray) -> np.ndarray:
