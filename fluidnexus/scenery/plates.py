@@ -192,7 +192,10 @@ def _smoke_colour(video: np.ndarray, plate: np.ndarray, differs: np.ndarray, tol
     1 on (outside ``differs``): in the haze model ``I = B (1 - a) + A a`` every departure lies on the line from its
     backdrop towards the smoke's colour A, so A is the point nearest all those lines (least squares: the sum over
     lines of the projections across them, accumulated frame by frame). None where the lines do not fix a point (all
-    parallel: smoke and backdrops of one hue) or under ``SIGN_AGREEMENT`` of the pixels depart towards it."""
+    parallel: smoke and backdrops of one hue), under ``SIGN_AGREEMENT`` of the pixels depart towards it, or the
+    video is not RGB."""
+    if video.shape[-1] != 3:
+        return None
     def departures(frame):
         departs = (np.abs(frame - plate).max(axis=2) >= tol) & ~differs
         b = plate[departs].astype(np.float64)

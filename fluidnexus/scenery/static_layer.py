@@ -51,7 +51,7 @@ from ..progress import progress
 from ..scene_scale import box_size
 from .static_hull import hull_points, in_box
 from .stereo import DepthMap, StereoConfig, depth_maps
-from .view_floor import floor_pixels, unseen_floor_seeds
+from .view_floor import off_floor_colour, unseen_floor_seeds
 from .view_objects import object_seeds
 
 STATIC_FILE = "static.npz"
@@ -151,16 +151,17 @@ def render_static(layer: StaticLayer, camera: Camera, return_depth: bool = False
 
 # ---- initialisation ------------------------------------------------------------------------------------------
 def _ray_seeds(index: int, cameras, plates, confidences, depth: DepthMap, fill: np.ndarray, lo: np.ndarray,
-               hi: np.ndarray, cfg: StaticConfig, generator: torch.Generator, floor=None) -> tuple[np.ndarray,
-                                                                                               np.ndarray]:
+               hi: np.ndarray, cfg: StaticConfig, generator: torch.Generator, alone: bool,
+               floor=None) -> tuple[np.ndarray, np.ndarray]:
     """One seed per ray of a jittered grid through view ``index``'s image with its plate's colour (``fill`` where
     the plate is unsure, confidence under 0.5), at the ray's stereo depth where another view confirms it. A ray
     without a confirmed depth seeds on the shell behind everything when the view shows a textured backdrop
     (:func:`_sees_backdrop`: a part of the wall this view alone sees shows there, and the wall hides it from
     other cameras), and nothing otherwise: over a plain backdrop nothing would hide a far seed from a camera
     looking the other way, and such rays are a textureless object (whose hull the volume seeds fill) or a plate's
-    error (smoke that sat still). Rays showing the background colour (within ``cfg.plain`` of ``fill``) seed
-    nothing."""
+    error (smoke that sat still). ``alone``: the only view, over a textured backdrop: each of its rays seeds,
+    where it meets ``floor`` if nearer than the shell. Rays showing the background colour (within ``cfg.plain`` of
+    ``fill``) seed nothing."""
     camera, plate, confidence = cameras[index], plates[index], confidences[index]
     center = 0.5 * (lo + hi)
     h, w = plate.shape[:2]
@@ -173,7 +174,6 @@ def _ray_seeds(index: int, cameras, plates, confidences, depth: DepthMap, fill: 
     pix = np.clip(uv.astype(int), 0, [w - 1, h - 1])
     confirmed = np.isfinite(z)
     shell = np.full(len(uv), float(np.linalg.norm(camera.center - center)) + shell_radius(cameras, lo, hi, cfg))
-    alone = len(cameras) == 1 and _textured(plate, confidence, fill, cfg)
     if alone and floor is not None:
         shell = np.minimum(shell, floor_depth(camera, uv, floor))
     z = np.where(confirmed, z, shell)
@@ -240,12 +240,11 @@ def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backd
     if len(sure) == 0:
         raise InputError(None, "backgrounds", "every plate pixel has confidence under 0.5: nothing to fit")
     background = np.median(sure, axis=0) if backdrop is None else _channels(backdrop, sure.shape[-1])
-    alone = len(cameras) == 1 and floor is not None and _textured(plates[0], confidences[0], background, cfg)
-    radius = shell_radius(cameras, lo, hi, cfg)
-    if alone and backdrop is None:
-        mask = floor_pixels(cameras[0], confidences[0], floor, 0.5 * (lo + hi), radius)
-        if mask is not None:
-            background = np.asarray(plates[0], np.float64)[(confidences[0] >= 0.5) & ~mask].mean(axis=0)
+    alone = len(cameras) == 1 and _textured(plates[0], confidences[0], background, cfg)  # one view of a room
+    center, radius, near = 0.5 * (lo + hi), shell_radius(cameras, lo, hi, cfg), 0.5 * float(np.linalg.norm(hi - lo))
+    if alone and floor is not None and backdrop is None:
+        walls = off_floor_colour(cameras[0], plates[0], confidences[0], floor, center, radius, near)
+        background = background if walls is None else walls
     depths = depth_maps(cameras, plates, confidences, lo, hi, cfg.stereo)
     nodes, node_colors = hull_points(depths, lo, hi, background, cfg.lattice, cfg.plain,
                                      inner_tolerance=cfg.inner_tolerance, views_needed=cfg.hull_views)
@@ -254,20 +253,20 @@ def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backd
     spacing = [np.full(len(nodes), node_spacing)]
     for index, camera in enumerate(cameras):
         p, c = _ray_seeds(index, cameras, plates, confidences, depths[index], background, lo, hi, cfg, generator,
-                          floor)
+                          alone, floor)
         points.append(p)
         colors.append(c)
         # each seed as wide as its ray's pixel footprint at its depth
         _, z = camera.project(p)
         spacing.append(np.abs(z) * camera.width / cfg.rays / camera.K[0, 0])
-    if alone:
-        p, c, s = unseen_floor_seeds(cameras[0], plates[0], confidences[0], floor, 0.5 * (lo + hi), radius,
-                                     0.5 * float(np.linalg.norm(hi - lo)), cfg.rays * cfg.rays)
+    if alone and floor is not None:
+        p, c, s = unseen_floor_seeds(cameras[0], plates[0], confidences[0], floor, center, radius, near,
+                                     cfg.rays * cfg.rays)
         points.append(p)
         colors.append(c)
         spacing.append(s)
     info = {}
-    if len(cameras) == 1 and anchor is not None and not _textured(plates[0], confidences[0], background, cfg):
+    if len(cameras) == 1 and anchor is not None and not alone:
         up = -cameras[0].R[1] if floor is None else floor.normal  # the image's up where no floor is given
         p, c, s = object_seeds(cameras[0], plates[0], confidences[0], background, anchor, cfg.plain,
                                cfg.max_gaussians // 2, up)

@@ -63,3 +63,17 @@ def unseen_floor_seeds(camera, plate: np.ndarray, confidence: np.ndarray, floor,
     seen = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] <= camera.width) & (uv[:, 1] >= 0) & (uv[:, 1] <= camera.height)
     nodes = nodes[~seen]
     return nodes, np.tile(colour, (len(nodes), 1)), np.full(len(nodes), spacing)
+
+
+def off_floor_colour(camera, plate: np.ndarray, confidence: np.ndarray, floor, center: np.ndarray, radius: float,
+                     near: float) -> np.ndarray | None:
+    """The mean colour of the view's sure pixels whose rays do not meet ``floor`` within ``radius`` of ``center``'s
+    foot (its walls: what the view shows above the floor), where the view shows the floor near the volume (as
+    :func:`unseen_floor_seeds` needs) and at least ``MIN_FLOOR`` of its sure pixels are off it; else None."""
+    if floor_pixels(camera, confidence, floor, center, near) is None:
+        return None
+    on = floor_pixels(camera, confidence, floor, center, radius)
+    off = (np.asarray(confidence) >= 0.5) & ~on
+    if off.sum() < MIN_FLOOR * (np.asarray(confidence) >= 0.5).sum():
+        return None
+    return np.asarray(plate, np.float64).reshape(on.shape + (-1,))[off].mean(axis=0)

@@ -196,8 +196,17 @@ def test_coloured_smoke_that_arrives_in_frame_1_and_stays_is_not_the_backdrop():
 
 
 def test_coloured_smoke_in_frame_0_that_leaves_is_not_taken_from_frame_0():
-    """The reverse with green smoke: frame 0 is the one nearer the smoke's colour, and the mode is kept (within
-    0.03 of the backdrop on 95 % of the column; at most 0.062 where the bands crossed it most, as before)."""
+    """The reverse with green smoke: the smoke's colour is found (the colour path runs), frame 0 is the one nearer
+    it, and the mode is kept (within 0.03 of the backdrop on 95 % of the column; at most 0.062 where the bands
+    crossed it most, as before)."""
+    from fluidnexus.scenery import plates
+
     back, column, est = _steady_coloured_column(slice(0, 10))
+    found = []
+    real = plates._smoke_colour
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(plates, "_smoke_colour", lambda *a: found.append(real(*a)) or found[-1])
+        _steady_coloured_column(slice(0, 10))
+    assert found and np.abs(found[0] - GREEN).max() < 0.05
     error = np.abs(est.plate - back).max(axis=2)[column]
     assert np.percentile(error, 95) < 0.03 and error.max() < 0.07

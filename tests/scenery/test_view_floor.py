@@ -102,3 +102,21 @@ def test_a_camera_turned_about_sees_the_floor_go_on(ti_engine):
     mask = floor_pixels(cam, sure[0], _floor(), 0.5 * (np.array(LO) + np.array(HI)), radius)
     seeds = initial_layer([cam], [plate], sure, LO, HI, StaticConfig(), floor=_floor())
     assert np.allclose(seeds.background, plate[~mask].mean(axis=0), atol=1e-6)
+
+
+def test_a_view_of_floor_only_keeps_the_median_background(ti_engine):
+    """A camera looking straight down sees nothing but floor: there is no wall to take the background colour from,
+    so it stays the plate's median (finite), the floor beyond the frame is still seeded, and the fit runs."""
+    from fluidnexus.scenery.static_layer import StaticConfig, fit_static, initial_layer
+    from fluidnexus.scenery.view_floor import off_floor_colour
+
+    down = Camera.look_at(48, 48, 40.0, TARGET + np.array([0.0, 2.5, 0.01]), TARGET)
+    plate = _room(down)
+    sure = [np.ones(plate.shape[:2], np.float32)]
+    center = 0.5 * (np.array(LO) + np.array(HI))
+    assert off_floor_colour(down, plate, sure[0], _floor(), center, 3.0, 0.87) is None
+    seeds = initial_layer([down], [plate], sure, LO, HI, StaticConfig(), floor=_floor())
+    assert np.allclose(seeds.background, np.median(plate.reshape(-1, 3), axis=0))
+    assert np.isfinite(seeds.means).all() and len(seeds) > 0
+    layer = fit_static([down], [plate], sure, LO, HI, StaticConfig(iterations=5), floor=_floor())
+    assert np.isfinite(layer.background).all()
