@@ -51,7 +51,7 @@ from ..progress import progress
 from ..scene_scale import box_size
 from .static_hull import hull_points, in_box
 from .stereo import DepthMap, StereoConfig, depth_maps
-from .view_floor import off_floor_colour, unseen_floor_seeds
+from .view_floor import floor_beyond_frame
 from .view_objects import object_seeds
 
 STATIC_FILE = "static.npz"
@@ -242,9 +242,12 @@ def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backd
     background = np.median(sure, axis=0) if backdrop is None else _channels(backdrop, sure.shape[-1])
     alone = len(cameras) == 1 and _textured(plates[0], confidences[0], background, cfg)  # one view of a room
     center, radius, near = 0.5 * (lo + hi), shell_radius(cameras, lo, hi, cfg), 0.5 * float(np.linalg.norm(hi - lo))
-    if alone and floor is not None and backdrop is None:
-        walls = off_floor_colour(cameras[0], plates[0], confidences[0], floor, center, radius, near)
-        background = background if walls is None else walls
+    beyond = None  # a single view's floor beyond its frame, and its walls' colour (``view_floor``)
+    if alone and floor is not None:
+        beyond = floor_beyond_frame(cameras[0], plates[0], confidences[0], floor, center, radius, near,
+                                    cfg.rays * cfg.rays)
+        if backdrop is None and beyond[3] is not None:
+            background = beyond[3]
     depths = depth_maps(cameras, plates, confidences, lo, hi, cfg.stereo)
     nodes, node_colors = hull_points(depths, lo, hi, background, cfg.lattice, cfg.plain,
                                      inner_tolerance=cfg.inner_tolerance, views_needed=cfg.hull_views)
@@ -259,12 +262,10 @@ def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backd
         # each seed as wide as its ray's pixel footprint at its depth
         _, z = camera.project(p)
         spacing.append(np.abs(z) * camera.width / cfg.rays / camera.K[0, 0])
-    if alone and floor is not None:
-        p, c, s = unseen_floor_seeds(cameras[0], plates[0], confidences[0], floor, center, radius, near,
-                                     cfg.rays * cfg.rays)
-        points.append(p)
-        colors.append(c)
-        spacing.append(s)
+    if beyond is not None:
+        points.append(beyond[0])
+        colors.append(beyond[1])
+        spacing.append(beyond[2])
     info = {}
     if len(cameras) == 1 and anchor is not None and not alone:
         up = -cameras[0].R[1] if floor is None else floor.normal  # the image's up where no floor is given

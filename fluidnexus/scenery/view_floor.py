@@ -9,7 +9,8 @@ the volume's centre, that the input camera does not see (behind it or outside it
 the mean colour of the input's floor pixels. The input's fit cannot move them (no view shows them); they are the
 best single colour for a floor of unknown pattern (the mean minimises the squared error). Nothing is seeded where
 the input shows too little floor to give its colour (under ``MIN_FLOOR`` of its sure pixels): a camera that looks
-up (no floor in view) says nothing about the floor's colour."""
+up (no floor in view) says nothing about the floor's colour. The rest of the view (its walls) gives the colour of
+what it never saw above the floor: the static layer's background colour."""
 from __future__ import annotations
 
 import numpy as np
@@ -38,17 +39,20 @@ def floor_pixels(camera, confidence: np.ndarray, floor, center: np.ndarray, radi
     return mask
 
 
-def unseen_floor_seeds(camera, plate: np.ndarray, confidence: np.ndarray, floor, center: np.ndarray, radius: float,
-                       near: float, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Seeds of the floor ``camera`` does not see (module docstring): points [N, 3], colours [N, C] and spacing [N]
-    (the lattice's, about ``count`` nodes in the disc of ``radius`` about ``center``'s foot on ``floor``); empty
-    where the view shows too little floor."""
+def floor_beyond_frame(camera, plate: np.ndarray, confidence: np.ndarray, floor, center: np.ndarray, radius: float,
+                       near: float, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """(points [N, 3], colours [N, C], spacing [N], walls [C] or None): the seeds of the floor ``camera`` does not
+    see (module docstring; the lattice's spacing puts about ``count`` nodes in the disc of ``radius`` about
+    ``center``'s foot on ``floor``, in the mean colour of the floor pixels within ``near`` of it), and the mean
+    colour of the view's sure pixels whose rays do not meet the floor within ``radius`` (its walls: what the view
+    shows above the floor; None where under ``MIN_FLOOR`` of its sure pixels are such). No seeds and no walls
+    where the view shows too little floor within ``near`` (``radius`` is at least ``near``)."""
     channels = np.asarray(plate).reshape(plate.shape[0], plate.shape[1], -1).shape[-1]
+    image = np.asarray(plate, np.float64).reshape(plate.shape[0], plate.shape[1], channels)
     center = np.asarray(center, np.float64)
-    mask = floor_pixels(camera, confidence, floor, center, near)
-    if mask is None:
-        return np.zeros((0, 3)), np.zeros((0, channels)), np.zeros(0)
-    colour = np.asarray(plate, np.float64).reshape(mask.shape + (channels,))[mask].mean(axis=0)
+    close = floor_pixels(camera, confidence, floor, center, near)
+    if close is None:
+        return np.zeros((0, 3)), np.zeros((0, channels)), np.zeros(0), None
     normal, point = np.asarray(floor.normal, np.float64), np.asarray(floor.point, np.float64)
     foot = center - ((center - point) @ normal) * normal
     a = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
@@ -62,18 +66,8 @@ def unseen_floor_seeds(camera, plate: np.ndarray, confidence: np.ndarray, floor,
     uv, z = camera.project(nodes)
     seen = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] <= camera.width) & (uv[:, 1] >= 0) & (uv[:, 1] <= camera.height)
     nodes = nodes[~seen]
-    return nodes, np.tile(colour, (len(nodes), 1)), np.full(len(nodes), spacing)
-
-
-def off_floor_colour(camera, plate: np.ndarray, confidence: np.ndarray, floor, center: np.ndarray, radius: float,
-                     near: float) -> np.ndarray | None:
-    """The mean colour of the view's sure pixels whose rays do not meet ``floor`` within ``radius`` of ``center``'s
-    foot (its walls: what the view shows above the floor), where the view shows the floor near the volume (as
-    :func:`unseen_floor_seeds` needs) and at least ``MIN_FLOOR`` of its sure pixels are off it; else None."""
-    if floor_pixels(camera, confidence, floor, center, near) is None:
-        return None
-    on = floor_pixels(camera, confidence, floor, center, radius)
-    off = (np.asarray(confidence) >= 0.5) & ~on
-    if off.sum() < MIN_FLOOR * (np.asarray(confidence) >= 0.5).sum():
-        return None
-    return np.asarray(plate, np.float64).reshape(on.shape + (-1,))[off].mean(axis=0)
+    colours = np.tile(image[close].mean(axis=0), (len(nodes), 1))
+    sure = np.asarray(confidence) >= 0.5
+    off = sure & ~floor_pixels(camera, confidence, floor, center, radius)  # not None: it holds ``close``
+    walls = image[off].mean(axis=0) if off.sum() >= MIN_FLOOR * sure.sum() else None
+    return nodes, colours, np.full(len(nodes), spacing), walls
