@@ -30,11 +30,12 @@ A step that fails (the tool's exit 2) makes a failed row with the tool's one-lin
 reference. The single video's heights are stated as a user would state them: every source of the family floats in its
 box (plumes start 8-30 % up it, jets 20-55 %, puffs 70-85 %: benchmarks/scenes/spec.py), so the volume's bottom face,
 synth's default plane, is never where the smoke starts, and one view cannot show how far along its rays the nozzle
-is; and a room's floor (a wall backdrop) lies below the volume, where the static layer should lay it. Before
-``synth`` the table states, from the truth, the room's floor (scene.json ``floor``: the horizontal plane of the
-room's floor, for wall and set backdrops) and the nozzle's height above it (``source_height``; none where the
+is; and a room's floor (a wall backdrop) lies below the volume, where the static layer should lay it. After
+``calibrate`` (both protocols: several views' static layer seeds only on a declared floor) the table states, from
+the truth, the room's floor (scene.json ``floor``: the horizontal plane of the room's floor, for wall and set
+backdrops) and the nozzle's height above it (``source_height``, which only a single video uses; none where the
 source sits on the floor, within its radius), and synth finds the rest from the input view; the row is marked
-"stated" (W/seedN/single-view/stated.txt and the row's ``stated`` say what). Where synth refuses even so (a foot's
+"stated" (W/seedN/PROTOCOL/stated.txt and the row's ``stated`` say what). Where synth refuses even so (a foot's
 ray that misses the plane), the row fails with the tool's message. A scene is prepared again from scratch
 unless every preparation step of an earlier run succeeded (W/seedN/PROTOCOL/prepared.json).
 ``--rescore`` computes the scores again from the runs and eval.json files already in W (steps not re-run, their
@@ -127,8 +128,8 @@ def prepare_scene(capture: Path, truth: dict, protocol: str, work: Path, log: Pa
         if args.plates == "true":
             plates = [t for n in roles["input"].split(",") for t in ("--plate", f"{n}={capture / 'plates' / n}.png")]
         steps["background"] = timed_command(["background", scene, *plates], log)
+    state_heights(scene, truth, work / STATED)
     if protocol == "single-view":
-        state_heights(scene, truth, work / STATED)
         steps["synth"] = timed_command(["synth", scene], log)
         steps["refine"] = timed_command(["refine", scene], log)
     done.write_text(json.dumps(steps))

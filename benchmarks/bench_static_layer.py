@@ -73,7 +73,7 @@ def main() -> None:
     from fluidnexus.scene import load_ground_truth, load_scene
     from fluidnexus.scenery.plate_store import read_plate
     from fluidnexus.scenery.static_layer import StaticConfig, fit_static, render_static, save_static
-    from fluidnexus.scenery.world import plates_at, view_anchor
+    from fluidnexus.scenery.world import layer_floor, plates_at, view_anchor
     from fluidnexus.video import read_video
 
     engine.init(arch="cpu", precision="f32")
@@ -87,7 +87,8 @@ def main() -> None:
     cfg = StaticConfig(iterations=args.iterations or StaticConfig.iterations, seed=args.seed, **overrides)
     tic = time.perf_counter()
     backdrop = None if args.plates_median else scene.backdrop_color
-    layer = fit_static(cameras, plates, confidences, scene.volume.min, scene.volume.max, cfg, backdrop, scene.ground(),
+    layer = fit_static(cameras, plates, confidences, scene.volume.min, scene.volume.max, cfg, backdrop,
+                       layer_floor(scene, len(cameras)),
                        view_anchor(scene))
     fit_s = time.perf_counter() - tic
     sure = np.concatenate([p[c >= 0.5] for p, c in zip(plates, confidences)])

@@ -7,11 +7,11 @@ The fit is a small 3D Gaussian splatting optimisation (Kerbl et al. 2023):
   grid of rays through its image, each seeding one Gaussian with its plate's colour at the depth plane-sweep
   stereo finds and another view confirms (``scenery.stereo``); the lattice nodes of the volume that no
   view sees through (``scenery.static_hull``: a surface without texture, which the stereo cannot place); a ray
-  without a confirmed depth seeds on a shell ``shell`` half-diagonals beyond the volume's centre (and beyond every
-  input camera, ``shell_cameras``) when its view shows a textured backdrop (which hides the seed from other
-  cameras), and nothing otherwise; a single view over a textured backdrop also seeds the floor it does not see
-  (``scenery.view_floor``). A ray or node
-  showing the background colour (within ``plain``) seeds nothing: a plain colour has no depth, and the learned
+  without a confirmed depth seeds where it meets the floor if that is nearer, else on a shell ``shell``
+  half-diagonals beyond the volume's centre (and beyond every input camera, ``shell_cameras``), when its view
+  shows a textured backdrop (which hides the seed from other cameras), and nothing otherwise; a single view over a
+  textured backdrop also seeds the floor it does not see (``scenery.view_floor``). A ray or node showing the
+  background colour (within ``plain``) seeds nothing: a plain colour has no depth, and the learned
   background colour already shows it (a white backdrop is not filled with white Gaussians). What lies beyond
   every Gaussian is one learned colour, initialised to the scene's known backdrop colour (PINF's
   ``frame_bkg_color``: Game's black sky), else for a single view that shows a floor over a textured backdrop to the
@@ -155,13 +155,12 @@ def _ray_seeds(index: int, cameras, plates, confidences, depth: DepthMap, fill: 
                floor=None) -> tuple[np.ndarray, np.ndarray]:
     """One seed per ray of a jittered grid through view ``index``'s image with its plate's colour (``fill`` where
     the plate is unsure, confidence under 0.5), at the ray's stereo depth where another view confirms it. A ray
-    without a confirmed depth seeds on the shell behind everything when the view shows a textured backdrop
-    (:func:`_sees_backdrop`: a part of the wall this view alone sees shows there, and the wall hides it from
-    other cameras), and nothing otherwise: over a plain backdrop nothing would hide a far seed from a camera
-    looking the other way, and such rays are a textureless object (whose hull the volume seeds fill) or a plate's
-    error (smoke that sat still). ``alone``: the only view, over a textured backdrop: each of its rays seeds,
-    where it meets ``floor`` if nearer than the shell. Rays showing the background colour (within ``cfg.plain`` of
-    ``fill``) seed nothing."""
+    without a confirmed depth seeds where it meets ``floor`` if nearer, else on the shell behind everything, when
+    the view shows a textured backdrop (``alone``, the only view over one, or :func:`_sees_backdrop`: a part of
+    the floor or the wall this view alone sees shows there, and the wall hides it from other cameras), and nothing
+    otherwise: over a plain backdrop nothing would hide a far seed from a camera looking the other way, and such
+    rays are a textureless object (whose hull the volume seeds fill) or a plate's error (smoke that sat still).
+    Rays showing the background colour (within ``cfg.plain`` of ``fill``) seed nothing."""
     camera, plate, confidence = cameras[index], plates[index], confidences[index]
     center = 0.5 * (lo + hi)
     h, w = plate.shape[:2]
@@ -174,15 +173,15 @@ def _ray_seeds(index: int, cameras, plates, confidences, depth: DepthMap, fill: 
     pix = np.clip(uv.astype(int), 0, [w - 1, h - 1])
     confirmed = np.isfinite(z)
     shell = np.full(len(uv), float(np.linalg.norm(camera.center - center)) + shell_radius(cameras, lo, hi, cfg))
-    if alone and floor is not None:
+    room = alone or _sees_backdrop(depth, lo, hi, cfg)
+    if room and floor is not None:
         shell = np.minimum(shell, floor_depth(camera, uv, floor))
     z = np.where(confirmed, z, shell)
     points = camera.unproject(uv, z)
     colors = np.array(plate[pix[:, 1], pix[:, 0]], np.float64).reshape(len(uv), -1)
     colors[confidence[pix[:, 1], pix[:, 0]] < 0.5] = fill
     # a plain colour has no depth (every depth agrees): what shows the background colour is left to it
-    content = (np.abs(colors - fill).max(axis=1) > cfg.plain) & (confirmed | alone | _sees_backdrop(depth, lo, hi,
-                                                                                                     cfg))
+    content = (np.abs(colors - fill).max(axis=1) > cfg.plain) & (confirmed | room)
     return points[content], colors[content]
 
 
@@ -430,8 +429,9 @@ def fit_static(cameras, plates, confidences, lo, hi, cfg: StaticConfig = StaticC
         cfg: settings; ``cfg.seed`` makes the fit deterministic.
         backdrop: a known colour beyond everything (RGB, scene.json ``backdrop_color``: PINF Game's black sky), or
             None for the plates' median colour; what shows it seeds nothing, and the background colour starts at it.
-        floor: the scene's floor (``scene.Floor``), where a single view over a textured backdrop seeds its rays
-            and, beyond its frame, the floor it does not see (``view_floor``).
+        floor: the scene's floor (``scene.Floor``; ``world.layer_floor`` says which), where the rays without a
+            confirmed depth of a view over a textured backdrop seed when it is nearer than the shell, and where a
+            single view also seeds the floor it does not see beyond its frame (``view_floor``).
         anchor: where a single view's objects over a plain backdrop stand (a point, metres; ``view_objects``), or
             None: then they seed nothing.
     Returns:

@@ -103,6 +103,21 @@ def test_the_anchor_is_the_declared_source_else_synths_foot():
     assert view_anchor(SimpleNamespace(source=None, views=[plain])) is None
 
 
+def test_one_view_lays_the_volume_s_foot_as_its_floor_several_only_a_declared_one():
+    """The floor the static layer seeds on (``world.layer_floor``): a single view takes the volume's bottom face
+    where none is declared; several views take only a declared floor (the bottom face of a volume that floats
+    above a room's floor is a wrong guess that their stereo does without)."""
+    from dataclasses import replace
+
+    from fluidnexus.scene import Floor, Scene, Volume
+    from fluidnexus.scenery.world import layer_floor
+
+    scene = Scene(".", 30.0, 4, (), Volume((-0.2, 0.0, -0.2), (0.2, 0.6, 0.2)), None)
+    assert layer_floor(scene, 1).point == (0.0, 0.0, 0.0) and layer_floor(scene, 4) is None
+    declared = replace(scene, floor=Floor((0.0, -0.5, 0.0)))
+    assert layer_floor(declared, 4) == layer_floor(declared, 1) == declared.floor
+
+
 def test_a_patch_stands_for_a_ball_in_the_flow():
     """The ball a patch stands for: centred on its axis at the anchor's depth, as large as the patch's area says;
     as a found obstacle it is a sphere-like solid whose signed distance is the ball's."""
