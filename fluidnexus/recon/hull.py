@@ -34,9 +34,10 @@ def hull_grid(volume: Volume, voxel: float) -> list[np.ndarray]:
 
 
 def visual_hull(cameras: tuple[Camera, ...], images: np.ndarray, volume: Volume, voxel: float,
-                threshold: float = 0.05, backdrops=None) -> Hull:
+                threshold: float = 0.05, behind=None) -> Hull:
     """Voxel centres on a ``voxel``-metre grid over ``volume`` that every view sees as smoke (``smoke_mask``
-    against the view's entry of ``backdrops``: [V] arrays [C] or [H, W, C]; black without them).
+    against the view's entry of ``behind``, [V] ``scenery.backdrop.Behind``: its background, at ``threshold``
+    times its reach; black at ``threshold`` without them).
 
     The grid is tested in slabs of at most ``CHUNK_POINTS`` voxels (whole x-planes), so the memory needed is
     that of one slab plus the kept points, whatever the grid's size.
@@ -46,8 +47,10 @@ def visual_hull(cameras: tuple[Camera, ...], images: np.ndarray, volume: Volume,
         images: [V, H, W, C] one frame per view, in [0, 1].
     """
     xs, ys, zs = hull_grid(volume, voxel)
-    backdrops = [None] * len(images) if backdrops is None else backdrops
-    masks = [smoke_mask(image, threshold, backdrop) for image, backdrop in zip(images, backdrops)]
+    if behind is None:
+        masks = [smoke_mask(image, threshold) for image in images]
+    else:
+        masks = [smoke_mask(image, threshold * b.reach, b.background) for image, b in zip(images, behind)]
     planes = max(1, CHUNK_POINTS // max(1, len(ys) * len(zs)))
     kept = [np.zeros((0, 3))]
     for i in range(0, len(xs), planes):

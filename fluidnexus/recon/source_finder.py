@@ -101,7 +101,7 @@ def find_source(scene: Scene, obs, voxel: float, slab: float, fallback: Source, 
 
     def hull(t: int, coarsening: int = 1) -> np.ndarray:
         points = visual_hull(obs.cameras, obs.frame(t), scene.volume, voxel * coarsening,
-                             backdrops=[b.background for b in obs.behind] or None).points
+                             behind=obs.behind or None).points
         return points if obstacle is None or not len(points) else points[obstacle.distance(points) > 0]
 
     seeds = hull(first)

@@ -15,7 +15,7 @@ per-pixel background B). For a camera the static scene is, in this order:
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -27,10 +27,14 @@ from ..scene import Scene
 @dataclass(frozen=True, eq=False)
 class Behind:
     """What a render composites the smoke with: ``background`` [C] (one colour) or [H, W, C] (per pixel), and
-    ``static`` (a ``scenery.static_layer.StaticLayer`` whose Gaussians are depth-sorted with the smoke) or None."""
+    ``static`` (a ``scenery.static_layer.StaticLayer`` whose Gaussians are depth-sorted with the smoke) or None.
+    ``reach``: the most that opaque smoke changes a channel of this view's frames, in the units of a smoke mask's
+    threshold (1; a smoke layer over black: its smoke colour's brightest channel, so dark smoke that absorbs is as
+    visible in its smoke layer as white smoke in its own, ``smoke_mask``)."""
 
     background: np.ndarray
     static: object | None = None
+    reach: float = 1.0
 
     def render_args(self, dtype) -> dict:
         """``background=`` and ``static=`` of ``engine.render`` as tensors of ``dtype`` (the static Gaussians
@@ -47,15 +51,15 @@ class Backdrop:
 
     Attributes:
         plates: input view name -> its clean plate [H, W, 3] at the camera's full size.
-        smoke_layers: names of the views whose videos are smoke layers over black (``synth`` recorded
-            ``smoke_layer`` in their provenance).
+        smoke_layers: name -> smoke colour's brightest channel, of the views whose videos are smoke layers over
+            black (``synth`` recorded ``smoke_layer`` in their provenance; 1 where it recorded no colour).
         layer: the run's static layer (``scenery.static_layer.StaticLayer``, in ``channels``) or None.
         color: the scene's backdrop colour (3,) or None.
     """
 
     channels: int
     plates: dict
-    smoke_layers: frozenset = frozenset()
+    smoke_layers: dict = field(default_factory=dict)
     layer: object | None = None
     color: np.ndarray | None = None
 
@@ -66,7 +70,7 @@ class Backdrop:
             plate = resize_image(self.plates[view], camera.width, camera.height)
             return Behind(to_channels(plate, self.channels), self.obstacles())
         if view in self.smoke_layers:
-            return Behind(np.zeros(self.channels, np.float32))
+            return Behind(np.zeros(self.channels, np.float32), reach=self.smoke_layers[view])
         if self.layer is not None:
             return Behind(np.asarray(self.layer.background, np.float32), self.layer)
         return Behind(self.constant())
@@ -99,8 +103,16 @@ def scene_backdrop(scene: Scene, channels: int, layer=None) -> Backdrop:
 
     plates = {name: read_plate(scene, name)[0] for name in scene.backgrounds}
     color = None if scene.backdrop_color is None else np.asarray(scene.backdrop_color, np.float32)
-    layers = frozenset(v.name for v in scene.views if v.video is not None and (v.provenance or {}).get("smoke_layer"))
+    layers = {v.name: _reach(v.provenance["smoke_layer"], channels) for v in scene.views
+              if v.video is not None and (v.provenance or {}).get("smoke_layer")}
     return Backdrop(channels, plates, layers, layer, color)
+
+
+def _reach(record: dict, channels: int) -> float:
+    """The brightest channel of a smoke layer's smoke colour (its provenance ``smoke_layer`` record), in
+    ``channels``; 1 where none was recorded."""
+    color = record.get("smoke_color")
+    return 1.0 if color is None else float(to_channels(np.asarray(color, np.float32), channels).max())
 
 
 def run_backdrop(run) -> Backdrop:
@@ -114,7 +126,8 @@ def run_backdrop(run) -> Backdrop:
 
 def smoke_mask(image: np.ndarray, threshold: float, backdrop=None) -> np.ndarray:
     """[H, W] bool: pixels of ``image`` [H, W, C] that differ from the backdrop ([C] one value or [H, W, C] a
-    plate; black without one) by more than ``threshold`` in some channel (smoke glows on black, darkens white)."""
+    plate; black without one) by more than ``threshold`` in some channel (smoke glows on black, darkens white).
+    For a view whose ``Behind.reach`` is under 1, pass ``threshold * reach``."""
     if backdrop is None:
         return image.max(axis=2) > threshold
     return np.abs(image - np.asarray(backdrop, image.dtype)).max(axis=2) > threshold

@@ -109,6 +109,17 @@ def test_source_finder_finds_a_sideways_jet(tmp_path):
     white = find_source(white_scene, replace(obs, images=1.0 - video, behind=behind), 0.01, 0.01,
                         Source((0.15, -0.3, 0.0), 0.02)).source
     assert white == src
+    # the same jet as the smoke layers that synth writes of dark smoke (colour 0.04, smoke over black: 0.7 opaque
+    # is 0.028, under the hull's 0.05) is found the same way once the views say how far their smoke can reach
+    dark = [dict(v.provenance or {}, smoke_layer={"over": "black", "smoke_color": [0.04] * 3}) for v in views]
+    layers = replace(scene, views=tuple(replace(v, provenance=p) for v, p in zip(views, dark)))
+    behind = tuple(scene_backdrop(layers, 1).behind(c, v.name) for v, c in zip(views, cameras))
+    assert all(b.reach == np.float32(0.04) for b in behind)
+    faint = replace(obs, images=0.04 * video, behind=behind)
+    assert find_source(layers, faint, 0.01, 0.01, Source((0.15, -0.3, 0.0), 0.02)).source == src
+    unaware = tuple(replace(b, reach=1.0) for b in behind)  # as before: no frame shows smoke
+    assert find_source(layers, replace(faint, behind=unaware), 0.01, 0.01,
+                       Source((0.15, -0.3, 0.0), 0.02)).record["method"].startswith("fallback")
     # a declared source keeps its direction; only its centre moves to the foot of the first frame's smoke
     declared = Source((0.3, 0.0, 0.0), 0.02, direction=tuple(direction / np.linalg.norm(direction)), speed=0.9)
     kept = find_source(replace(scene, source=declared), replace(obs, first=0), 0.01, 0.01, declared).source
