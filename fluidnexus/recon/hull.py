@@ -50,7 +50,7 @@ def visual_hull(cameras: tuple[Camera, ...], images: np.ndarray, volume: Volume,
     if behind is None:
         masks = [smoke_mask(image, threshold) for image in images]
     else:
-        masks = [smoke_mask(image, threshold * b.reach, b.background) for image, b in zip(images, behind)]
+        masks = [b.smoke_mask(image, threshold) for image, b in zip(images, behind)]
     planes = max(1, CHUNK_POINTS // max(1, len(ys) * len(zs)))
     kept = [np.zeros((0, 3))]
     for i in range(0, len(xs), planes):

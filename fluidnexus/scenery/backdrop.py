@@ -36,6 +36,11 @@ class Behind:
     static: object | None = None
     reach: float = 1.0
 
+    def smoke_mask(self, image: np.ndarray, threshold: float) -> np.ndarray:
+        """[H, W] bool: the pixels of this view's ``image`` that show smoke (:func:`smoke_mask` against the
+        background, at ``threshold`` times ``reach``)."""
+        return smoke_mask(image, threshold * self.reach, self.background)
+
     def render_args(self, dtype) -> dict:
         """``background=`` and ``static=`` of ``engine.render`` as tensors of ``dtype`` (the static Gaussians
         frozen)."""
@@ -127,7 +132,7 @@ def run_backdrop(run) -> Backdrop:
 def smoke_mask(image: np.ndarray, threshold: float, backdrop=None) -> np.ndarray:
     """[H, W] bool: pixels of ``image`` [H, W, C] that differ from the backdrop ([C] one value or [H, W, C] a
     plate; black without one) by more than ``threshold`` in some channel (smoke glows on black, darkens white).
-    For a view whose ``Behind.reach`` is under 1, pass ``threshold * reach``."""
+    A view's ``Behind.smoke_mask`` scales the threshold by how far its smoke can reach."""
     if backdrop is None:
         return image.max(axis=2) > threshold
     return np.abs(image - np.asarray(backdrop, image.dtype)).max(axis=2) > threshold
