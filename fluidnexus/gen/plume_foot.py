@@ -10,15 +10,17 @@ plane ("the floor" below) at the source:
 1. the earliest frame in which at least ``MIN_PIXELS`` pixels differ from what the view sees behind the smoke by
    more than ``THRESHOLD`` (``scenery.backdrop.smoke_mask``);
 2. the image direction of "down" (the floor normal, reversed) at the smoke, and the end of the smoke it leaves
-   from: its foot, unless over the next ``LEAVING_FRAMES`` frames its centroid moves down the image, by more than
-   a pixel and more than it moves across (a puff from a nozzle above: the end is its top). The end is the smoke's
-   ``FOOT_PERCENTILE`` extent along down (or up), robust to a few noisy pixels, centred across the band of smoke
-   pixels within ``FOOT_BAND`` of it;
-3. the end pixel's ray meets the floor (for a puff, the plane of its nozzle: ``source_height``) at a rim of the
-   inflow: the rim nearest the camera where the camera looks at the end from the side the smoke leaves to (seen
-   from above, the lowest smoke in the image is the near rim), else the far rim. The band's width at that depth
-   gives the radius, and the centre lies one radius beyond the near rim along the ray's horizontal direction (one
-   radius before the far rim).
+   from, told by how its centroid moves over the next ``LEAVING_FRAMES`` frames: down the image, by more than a
+   pixel and more than across (a puff from a nozzle above: the end is its top); across the image, by more than a
+   pixel and more than along (a jet: the end is its trailing side, the one it moves away from); else its foot.
+   The end is the smoke's ``FOOT_PERCENTILE`` extent away from where it goes, robust to a few noisy pixels,
+   centred across the band of smoke pixels within ``FOOT_BAND`` of it;
+3. the end pixel's ray meets the floor (for a puff or a jet, the plane of its nozzle: ``source_height``). A foot or
+   a top lies on a rim of the inflow: the rim nearest the camera where the camera looks at the end from the side
+   the smoke leaves to (seen from above, the lowest smoke in the image is the near rim), else the far rim; the
+   centre lies one radius beyond the near rim along the ray's horizontal direction (one radius before the far
+   rim). A jet's nozzle faces sideways, so the middle of its trailing side is the centre. The band's width at that
+   depth gives the radius.
 
 The cast is only as good as the angle at which the foot's ray meets the floor: a camera at the floor's height sees
 it edge on, and a pixel of error in the foot moves the cast far along the ray (ScalarFlow's cameras stand 5.6 cm
@@ -98,17 +100,25 @@ def earliest_smoke(footage: np.ndarray, behind) -> tuple[int, np.ndarray]:
     return -1, None
 
 
-def leaves_downward(footage: np.ndarray, behind, t0: int, centre: np.ndarray, down: np.ndarray) -> bool:
-    """Whether the smoke of frame ``t0`` (its pixels' centroid ``centre``) moves down the image over the next
-    :data:`LEAVING_FRAMES` frames: its centroid moves along ``down`` by more than a pixel and more than across."""
+def leaving(footage: np.ndarray, behind, t0: int, centre: np.ndarray, down: np.ndarray) -> tuple[str, np.ndarray]:
+    """Which end the smoke of frame ``t0`` (its pixels' centroid ``centre``) leaves from, by how its centroid moves
+    over the next :data:`LEAVING_FRAMES` frames: ``("top", -down)`` where it moves along ``down`` by more than a
+    pixel and more than across, ``("side", d)`` where it moves across by more than a pixel and more than along
+    (``d``: the image direction across that it moves away from), else ``("foot", down)``. The direction points
+    from the smoke towards that end."""
     t1 = min(t0 + LEAVING_FRAMES, len(footage) - 1)
     later = smoke_mask(footage[t1], THRESHOLD, behind) if t1 > t0 else None
     if later is None or later.sum() < MIN_PIXELS:
-        return False
+        return "foot", down
     rows, cols = np.nonzero(later)
     moved = np.array([cols.mean(), rows.mean()]) + 0.5 - centre
-    along, across = float(moved @ down), abs(float(moved @ np.array([-down[1], down[0]])))
-    return along > 1.0 and along > across
+    side = np.array([-down[1], down[0]])
+    along, across = float(moved @ down), float(moved @ side)
+    if along > 1.0 and along > abs(across):
+        return "top", -down
+    if abs(across) > 1.0 and abs(across) > abs(along):
+        return "side", -np.sign(across) * side
+    return "foot", down
 
 
 def plume_foot(scene: Scene, view_name: str, camera: Camera, footage: np.ndarray, behind,
@@ -139,8 +149,7 @@ def plume_foot(scene: Scene, view_name: str, camera: Camera, footage: np.ndarray
     if depth <= 0:
         raise InputError(video, None, "the scene's volume lies behind the input camera")
     down = down_in_image(camera, centre, depth, normal, 0.05 * depth)
-    downward = leaves_downward(footage, behind, t0, centre, down)
-    leave = -down if downward else down  # towards the end the smoke leaves from
+    end, leave = leaving(footage, behind, t0, centre, down)  # towards the end the smoke leaves from
     across = np.array([-leave[1], leave[0]])
     along = uv @ leave
     s_foot = float(np.percentile(along, FOOT_PERCENTILE))
@@ -152,7 +161,6 @@ def plume_foot(scene: Scene, view_name: str, camera: Camera, footage: np.ndarray
     ray /= np.linalg.norm(ray)
     grazing = float(np.degrees(np.arcsin(min(1.0, abs(float(ray @ normal))))))
     hit = floor.hit(camera.center, ray)
-    end = "top" if downward else "foot"
     where = f"the ray through the smoke's {end} (pixel {np.round(pixel, 1).tolist()} of frame {t0})"
     if grazing < MIN_GRAZING_DEG and scene.volume is not None:
         hit = _upright_plane_hit(camera, ray, ref, normal)  # the box decides
@@ -177,10 +185,10 @@ def plume_foot(scene: Scene, view_name: str, camera: Camera, footage: np.ndarray
     hit_depth = float(camera.project(hit[None])[1][0])
     half_width = max(1.0, float(np.sqrt(2.0) * np.std(lateral)))  # a uniform disk's rms, as the hull finder
     radius = half_width * hit_depth / float(camera.K[0, 0])
-    if grazing >= MIN_GRAZING_DEG:  # from the rim the end's ray meets to the centre
+    if grazing >= MIN_GRAZING_DEG and end != "side":  # from the rim the end's ray meets to the centre
         away = ray - (ray @ normal) * normal
         above = float((camera.center - np.asarray(floor.point)) @ normal) > 0.0
-        near = above != downward  # the camera looks at the end from the side the smoke leaves to
+        near = above != (end == "top")  # the camera looks at the end from the side the smoke leaves to
         hit = hit + (1.0 if near else -1.0) * radius * away / max(np.linalg.norm(away), 1e-12)
     source = Source(tuple(float(v) for v in hit), radius)
     record = {"method": method, "view": view_name, "frame": t0, "pixel": [round(float(v), 2) for v in pixel],

@@ -134,3 +134,33 @@ def test_a_column_that_grows_upward_keeps_its_foot():
     found = plume_foot(scene_for(camera), "cam", camera, video, None, Path("cam.mp4"))
     assert found.record["end"] == "foot"
     np.testing.assert_allclose(found.source.center, FOOT, atol=0.02)
+
+
+def jet_footage(camera: Camera, nozzle: np.ndarray, direction: np.ndarray, frames: int = 6) -> np.ndarray:
+    """[frames, H, W, 1]: frame 0 empty, then a horizontal cylinder of smoke that grows from ``nozzle`` along the
+    unit ``direction`` (a sideways jet; its nozzle's disk faces ``direction``, centred on ``nozzle``)."""
+    video = np.zeros((frames, camera.height, camera.width, 1), np.float32)
+    side = np.cross(direction, (0.0, 1.0, 0.0))
+    for t in range(1, frames):
+        rng = np.random.default_rng(t)
+        r, a = RADIUS * np.sqrt(rng.uniform(size=4000)), rng.uniform(0, 2 * np.pi, 4000)
+        s = rng.uniform(0.0, 0.06 * t, 4000)
+        points = nozzle + s[:, None] * direction + (r * np.cos(a))[:, None] * side + (r * np.sin(a))[:, None] * \
+            np.array([0.0, 1.0, 0.0])
+        video[t:t + 1] = footage(camera, points, 2)[1:]
+    return video
+
+
+@pytest.mark.parametrize("direction", [(1.0, 0.0, 0.0), (-0.8, 0.0, 0.6)], ids=["right", "left-and-towards"])
+def test_a_sideways_jet_is_cast_from_the_middle_of_its_trailing_side(direction):
+    # a jet leaves its nozzle sideways: the end it leaves from is the side it moves away from, and the middle of
+    # that side (not its lowest smoke, a radius under the nozzle's plane) meets the nozzle's stated plane
+    nozzle = np.array([-0.1, 0.4, -0.1])
+    direction = np.asarray(direction) / np.linalg.norm(direction)
+    camera = Camera.look_at(W, H, 150.0, eye=(0.3, 1.2, 1.6), target=(0.0, 0.4, 0.0))
+    scene = Scene(Path("/nonexistent"), 30.0, 3, (View("cam", "input", camera, "videos/cam.mp4"),), VOLUME,
+                  source_height=0.4)
+    found = plume_foot(scene, "cam", camera, jet_footage(camera, nozzle, direction), None, Path("cam.mp4"))
+    assert found.record["end"] == "side" and "side of the earliest smoke" in found.record["method"]
+    np.testing.assert_allclose(found.source.center, nozzle, atol=0.02)  # 2 % of the box
+    assert found.source.radius == pytest.approx(RADIUS, rel=0.5)
