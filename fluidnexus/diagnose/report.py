@@ -58,11 +58,13 @@ def width_slope(q) -> float | None:
 
 def write_outputs(out_dir: Path, observed, bases: dict, structure: str, fits: dict, judged: dict, finding: str,
                   train, validate, fitter, spread: tuple[int, float], emission, seconds: float,
-                  explanations: list, source_from: str) -> dict:
+                  explanations: list, source_from: str, confirmation: dict | None) -> dict:
     """``bases``: the control fit of each structure; ``structure``: the chosen one; ``fits`` and ``judged``: the
     candidates on it; ``emission``: the source's emission window (emission.Emission); ``explanations``: every
-    explanation that passes, (structure, term, validation error), the chosen first (run.explain); ``source_from``:
-    where the simulated plume's source came from (run.plume_source)."""
+    explanation that passes and holds at the confirmation's height, (structure, term, validation error), the chosen
+    first (run.explain, run.confirm); ``source_from``: where the simulated plume's source came from
+    (run.plume_source); ``confirmation``: the refits at another observation height (run.confirm), None where
+    nothing passed."""
     out_dir.mkdir(parents=True, exist_ok=True)
     a = train[0]
     va = np.arange(validate[0] - a, validate[1] - a)
@@ -86,6 +88,7 @@ def write_outputs(out_dir: Path, observed, bases: dict, structure: str, fits: di
               "emission": emission.to_dict(),
               "explanations": [{"structure": st, "effect": name, "validate_error": err}
                                for st, name, err in explanations],
+              "confirmation": confirmation,
               "width_slope": {"observed": width_slope(plots["observed"]),
                               "base": width_slope(plots["models"][structure]),
                               "chosen": width_slope(plots["chosen"])},
@@ -253,6 +256,7 @@ def _markdown(report, observed, bases, structure, fits, judged, finding, va, plo
               "where its search starts at the base model (every candidate but entrainment), it also lowers the "
               "training error: one that does not has not found its effect on the frames it was fitted to."]
     lines += _explanations_text(report["explanations"])
+    lines += _confirmation_text(report["confirmation"])
     lines += ["", f"How far the training frames pin the base model: {spread[0]} fits of the base model alone "
               f"(no extension, from the base and control searches) come within {100 * SPREAD_TOLERANCE:.0f} % of "
               f"the control's training error; {same}"]
@@ -263,6 +267,22 @@ def _markdown(report, observed, bases, structure, fits, judged, finding, va, plo
     lines += ["", f"Metric: {report['finding']['gain']['metric']} = the {_METRIC_TEXT}.", "", "## Plots", ""]
     lines += [f"- {title}: ![{title}]({name})" for name, title in plots["files"].items()]
     return "\n".join(lines) + "\n"
+
+
+def _confirmation_text(confirmation: dict | None) -> list[str]:
+    """report.md's paragraph on the longer refits of the terms that passed (run.confirm)."""
+    if confirmation is None:
+        return []
+    lines = ["", f"Every term that passed was refitted from scratch, with its base model, with {confirmation['evals']} "
+                 f"rollouts a fit ({confirmation['rollouts']} in all) and judged by the same rule: a short search "
+                 "can stop where a term's extra parameter stands in for the base model's own, the footage's effect "
+                 "passes after either."]
+    for r in confirmation["explanations"]:
+        verdict = "holds" if r["holds"] else "does not hold, so it is not kept"
+        lines.append(f"- `{r['effect']}` on the {STRUCTURE_LABELS[r['structure']]}: validation gain "
+                     f"{100 * r['gain']:.1f} % (p {r['p']:.2g}), training error {r['train_before']:.4f} -> "
+                     f"{r['train_after']:.4f}; {verdict}.")
+    return lines
 
 
 def _explanations_text(explanations: list) -> list[str]:

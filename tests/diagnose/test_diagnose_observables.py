@@ -172,3 +172,18 @@ def test_gains_within_the_search_spread_are_named_with_the_footage_that_would_te
     assert indistinct(judged, (5, 0.2)) == ["dissipation"]
     assert indistinct(judged, (5, 0.0)) == []
     assert set(FOOTAGE_HINTS) == set(EXTENSIONS)
+
+
+def test_confirmed_keeps_what_held_and_the_air_without_its_term():
+    from fluidnexus.diagnose.run import confirmed
+
+    errors = {"paper_gas": 0.50, "ambient_air": 0.30}
+    both = [("ambient_air", "wind", 0.20), ("paper_gas", "dissipation", 0.25)]
+    # the air's term fails: the structure passed on its own and stays without it, behind the paper's gas's term
+    assert confirmed(both, {("ambient_air", "wind"): False, ("paper_gas", "dissipation"): True}, errors) == [
+        ("paper_gas", "dissipation", 0.25), ("ambient_air", "none", 0.30)]
+    assert confirmed(both, {("ambient_air", "wind"): True, ("paper_gas", "dissipation"): False}, errors) == [
+        ("ambient_air", "wind", 0.20)]
+    # a term on the paper's gas that fails leaves nothing (the caller falls back to the paper's gas with none)
+    assert confirmed([("paper_gas", "buoyancy_decay", 0.51)], {("paper_gas", "buoyancy_decay"): False}, errors) == []
+    assert confirmed([("ambient_air", "none", 0.30)], {}, errors) == [("ambient_air", "none", 0.30)]
