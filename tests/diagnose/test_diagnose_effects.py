@@ -8,7 +8,7 @@ three times the rollouts (run.confirm): this file's fast tier 467 s in one proce
 dissipation 187 s, entrainment 129, the plain plume 81, the paper's-gas control 60; 2026-11-29; 316 s without the
 refits). ``make test`` runs the fast tier (the plain plume, the
 paper's-gas control, entrainment in the paper's gas, dissipation) and the visibility test; ``make test-slow`` runs
-the rest (the wind among them: 260 s in the suite's two workers). Buoyancy decay, vorticity confinement, viscosity
+the rest (the wind among them: 422 s alone). Buoyancy decay, vorticity confinement, viscosity
 and swirl are ``xfail``: their data differ from a plain plume with the same generator constants
 (``test_hidden_effects_are_visible``), but diagnose does not name them. Buoyancy decay cannot be named from this
 footage by any model: a plain plume with weaker buoyancy matches its training frames
@@ -185,7 +185,7 @@ def test_diagnose_finds_entrainment_in_the_paper_gas(template, tmp_path, ti_engi
     assert abs(slope["chosen"] - slope["observed"]) < 0.25 * slope["observed"], slope
 
 
-@pytest.mark.slow  # 100 s alone, 260 s in the suite's two workers: the slow tier (2026-11-27)
+@pytest.mark.slow  # 422 s alone with its confirmation (2026-11-29; 100 s before it): the slow tier
 def test_diagnose_finds_hidden_wind(template, tmp_path):
     """At the CLI's default budget (20 rollouts per fit; at 10 and 14 the base fit is not converged and the speed
     comes out 43-69 % high: BENCHMARKS.md, "Re-measured with the structure level"). The gas in air is the
