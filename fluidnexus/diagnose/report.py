@@ -61,10 +61,10 @@ def write_outputs(out_dir: Path, observed, bases: dict, structure: str, fits: di
                   explanations: list, source_from: str, confirmation: dict | None) -> dict:
     """``bases``: the control fit of each structure; ``structure``: the chosen one; ``fits`` and ``judged``: the
     candidates on it; ``emission``: the source's emission window (emission.Emission); ``explanations``: every
-    explanation that passes and holds at the confirmation's height, (structure, term, validation error), the chosen
+    explanation that passes and holds after the longer search, (structure, term, validation error), the chosen
     first (run.explain, run.confirm); ``source_from``: where the simulated plume's source came from
-    (run.plume_source); ``confirmation``: the refits at another observation height (run.confirm), None where
-    nothing passed."""
+    (run.plume_source); ``confirmation``: the terms' refits with the longer search (run.confirm), None where no
+    term passed."""
     out_dir.mkdir(parents=True, exist_ok=True)
     a = train[0]
     va = np.arange(validate[0] - a, validate[1] - a)

@@ -184,9 +184,7 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
             tried["ambient_air"] = tuple(n for n in candidates if n not in PAPER_GAS_ONLY)
             tasks += start_candidates(pool, "ambient_air", bases["ambient_air"], tried["ambient_air"])
         results = {key: task.result() for key, task in tasks}
-        # only a candidate with a clear gain can pass: only its term is switched off to see whether it carries it
-        clear = [key for key, fit in results.items() if judge(bases[key[0]], fit, tr, va).clear_gain]
-        ablations = dict(zip(clear, pool.map(ablate, [(results[key],) for key in clear])))
+        ablations = _ablations(pool, bases, results, tr, va)
     fits = {st: {} for st in tried}
     judged = {st: {} for st in tried}
     for (st, name), fit in results.items():
@@ -260,8 +258,7 @@ def confirm(explanations: list, bases: dict, observed: Observed, sim: PlumeSimul
         refit = {st: task.result()[1] for st, task in zip(structures, tasks)}
         tasks = [pool.submit(fit_candidate, (refit[st], name, longer, drift(refit[st]))) for st, name in terms]
         fits = {key: task.result() for key, task in zip(terms, tasks)}
-        clear = [key for key in terms if judge(refit[key[0]], fits[key], train, validate).clear_gain]
-        ablations = dict(zip(clear, pool.map(ablate, [(fits[key],) for key in clear])))
+        ablations = _ablations(pool, refit, fits, train, validate)
     records = []
     for st, name in terms:
         j = judge(refit[st], fits[(st, name)], train, validate, ablations.get((st, name)))
@@ -288,6 +285,14 @@ def confirmed(explanations: list, held: dict, base_errors: dict) -> list:
         elif st == "ambient_air":
             kept.append((st, "none", base_errors[st]))
     return sorted(kept, key=lambda e: e[2])
+
+
+def _ablations(pool: FitPool, bases: dict, fits: dict, train: np.ndarray, validate: np.ndarray) -> dict:
+    """(structure, term) -> the fit with its term switched off (``search.ablate``), for the fits of ``fits`` (keyed
+    the same) with a clear gain over their structure's base in ``bases``: only those can pass, so only their term is
+    switched off to see whether it carries the gain."""
+    clear = [key for key, fit in fits.items() if judge(bases[key[0]], fit, train, validate).clear_gain]
+    return dict(zip(clear, pool.map(ablate, [(fits[key],) for key in clear])))
 
 
 def _fitter(sim: PlumeSimulator, observed: Observed, train: np.ndarray) -> Fitter:
