@@ -8,6 +8,8 @@ report does not depend on ``jobs`` (a test compares). A task can be started befo
 paper's gas's candidates while the gas in ambient air is still being fitted); every model a worker scored comes back
 with its task's result, and results are collected in the order the tasks were started, so the fits join the
 fitter's record in the order of a serial run and the search spread (``search.search_spread``) sees the same fits.
+The workers stay for the confirmation's refits (``FitPool.renew``): a worker's start (imports, Taichi, the
+kernels loaded) costs several seconds.
 """
 from __future__ import annotations
 
@@ -24,6 +26,7 @@ from .search import Fitter
 MAX_JOBS = 6
 
 _fitter: Fitter | None = None  # a worker's own fitter
+_phase = 0  # the phase (FitPool.renew) of the worker's fitter
 
 
 def plan_jobs(requested: int | None, arch: str, limit: int) -> int:
@@ -58,6 +61,15 @@ class FitPool:
             raise ValueError(f"jobs must be at least 1, got {jobs}")
         self.fitter, self.jobs = fitter, jobs
         self._pool: ProcessPoolExecutor | None = None
+        self._phase = 0
+
+    def renew(self, fitter: Fitter) -> None:
+        """Tasks submitted from now on fit for ``fitter``, a fresh fitter of the same simulator, footage and
+        training window (a new phase of the search: diagnose's confirmation). Each worker renews its own fitter
+        at its first task of the phase, so it starts from an empty record as a newly started worker would (the
+        record decides which rollouts run past the training frames), and keeps its compiled kernels."""
+        self.fitter = fitter
+        self._phase += 1
 
     def __enter__(self) -> "FitPool":
         if self.jobs > 1:
@@ -81,7 +93,7 @@ class FitPool:
         ``fitter.evaluations``)."""
         if self._pool is None:
             return Task(self.fitter, result=fn(self.fitter, *args))
-        return Task(self.fitter, future=self._pool.submit(_run, fn, args))
+        return Task(self.fitter, future=self._pool.submit(_run, fn, args, self._phase))
 
     def map(self, fn, arglists: list[tuple]) -> list:
         """``[fn(fitter, *args) for args in arglists]``, side by side."""
@@ -133,8 +145,13 @@ def _exit_with(parent: int, every: float = 1.0) -> None:
     threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
-def _run(fn, args: tuple):
-    """One task in a worker: its result, the models it scored and the rollouts it ran."""
+def _run(fn, args: tuple, phase: int):
+    """One task of the pool's phase ``phase`` in a worker: its result, the models it scored and the rollouts it
+    ran."""
+    global _fitter, _phase
+    if phase != _phase:
+        f = _fitter
+        _fitter, _phase = Fitter(f.sim, f.observed, f.cameras, f.sigma, f.train), phase
     scored, evaluations = len(_fitter.scored), _fitter.evaluations
     result = fn(_fitter, *args)
     return result, _fitter.scored[scored:], _fitter.evaluations - evaluations

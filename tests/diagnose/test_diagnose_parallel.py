@@ -5,12 +5,15 @@ import json
 import os
 import re
 
+import numpy as np
 import pytest
 
 from click.testing import CliRunner
 
 from fluidnexus_cli.main import main
-from fluidnexus.diagnose.parallel import MAX_JOBS, plan_jobs
+from fluidnexus.diagnose.parallel import MAX_JOBS, FitPool, plan_jobs
+from fluidnexus.diagnose.plume import PlumeSetup, PlumeSimulator
+from fluidnexus.diagnose.search import Fitter
 from fluidnexus.memory import RUNTIME_BYTES
 
 from .eulerian_plume import Grid, PlumeEffects, simulate, write_scene
@@ -53,3 +56,30 @@ def test_default_jobs_follow_cores_memory_and_arch():
     assert plan_jobs(None, "cpu", 2 * RUNTIME_BYTES) == 1  # this process and one worker: no room for a second
     assert plan_jobs(None, "cuda", 100 * RUNTIME_BYTES) == 1
     assert plan_jobs(3, "cpu", 100 * RUNTIME_BYTES) == 3
+
+
+def _probe(fitter, mark: int) -> tuple[int, int]:
+    """A fit task that scores nothing real: (this worker's pid, models its fitter had scored), then one scored."""
+    before = len(fitter.scored)
+    fitter.scored.append(("probe", (), np.full(1, float(mark))))
+    return os.getpid(), before
+
+
+def test_renewed_workers_start_the_phase_with_an_empty_record(ti_engine):
+    """FitPool.renew (diagnose's confirmation): the same worker processes go on, each with a fitter that has
+    scored nothing yet, as a new worker's would; the pool's fitter collects only the new phase's models."""
+    setup = PlumeSetup((0.0, 0.0, 0.0), 0.05, 0.02, 30.0, 4, (-0.5, -0.5, -0.5), (0.5, 0.5, 0.5), np.zeros((0, 3)),
+                       np.zeros((0, 3)))
+    cameras, train = [], np.arange(2)
+    first = Fitter(PlumeSimulator(setup), np.zeros((1, 4, 2, 2)), cameras, 1.0, train)
+    second = Fitter(first.sim, first.observed, cameras, 1.0, train)
+    with FitPool(first, 2) as pool:
+        before = pool.map(_probe, [(k,) for k in range(6)])
+        pool.renew(second)
+        after = pool.map(_probe, [(k,) for k in range(6, 12)])
+    assert {pid for pid, _ in after} <= {pid for pid, _ in before}  # the workers stayed
+    for phase in (before, after):
+        for pid in {p for p, _ in phase}:
+            assert sorted(n for p, n in phase if p == pid)[0] == 0, phase  # each worker's record starts empty
+    assert [float(s[2][0]) for s in first.scored] == list(range(6))
+    assert [float(s[2][0]) for s in second.scored] == list(range(6, 12))
