@@ -63,13 +63,14 @@ class FitPool:
         self._pool: ProcessPoolExecutor | None = None
         self._phase = 0
 
-    def renew(self, fitter: Fitter) -> None:
-        """Tasks submitted from now on fit for ``fitter``, a fresh fitter of the same simulator, footage and
-        training window (a new phase of the search: diagnose's confirmation). Each worker renews its own fitter
-        at its first task of the phase, so it starts from an empty record as a newly started worker would (the
-        record decides which rollouts run past the training frames), and keeps its compiled kernels."""
-        self.fitter = fitter
+    def renew(self) -> Fitter:
+        """A new phase of the search (diagnose's confirmation): tasks submitted from now on fit for a fresh fitter
+        (``Fitter.fresh``), which is returned. Each worker renews its own fitter at its first task of the phase, so
+        it starts from an empty record as a newly started worker would (the record decides which rollouts run past
+        the training frames), and keeps its compiled kernels."""
+        self.fitter = self.fitter.fresh()
         self._phase += 1
+        return self.fitter
 
     def __enter__(self) -> "FitPool":
         if self.jobs > 1:
@@ -150,8 +151,7 @@ def _run(fn, args: tuple, phase: int):
     ran."""
     global _fitter, _phase
     if phase != _phase:
-        f = _fitter
-        _fitter, _phase = Fitter(f.sim, f.observed, f.cameras, f.sigma, f.train), phase
+        _fitter, _phase = _fitter.fresh(), phase
     scored, evaluations = len(_fitter.scored), _fitter.evaluations
     result = fn(_fitter, *args)
     return result, _fitter.scored[scored:], _fitter.evaluations - evaluations

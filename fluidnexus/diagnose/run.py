@@ -197,7 +197,7 @@ def diagnose(scene_dir, out_dir, train: tuple[int, int], validate: tuple[int, in
                          j.train_before, j.train_after, j.before, j.after, 100 * j.relative_gain, j.p_value,
                          "not needed" if j.ablated is None else f"{j.ablated.before:.4f}")
         explanations = explain(bases, structure_judged, fits, judged, va)
-        explanations, confirmation = confirm(explanations, bases, observed, sim, drift, maxfev, pool, tr, va)
+        explanations, confirmation = confirm(explanations, bases, drift, maxfev, pool, tr, va)
     structure, finding = explanations[0][:2]
     base = bases[structure]
     spread = search_spread(fitter, base, va)
@@ -234,14 +234,14 @@ def explain(bases: dict, structure_judged, fits: dict, judged: dict, validate: n
     return sorted(out, key=lambda e: e[2]) or [paper]
 
 
-def confirm(explanations: list, bases: dict, observed: Observed, sim: PlumeSimulator, drift, maxfev: int,
-            pool: FitPool, train: np.ndarray, validate: np.ndarray) -> tuple[list, dict | None]:
+def confirm(explanations: list, bases: dict, drift, maxfev: int, pool: FitPool, train: np.ndarray,
+            validate: np.ndarray) -> tuple[list, dict | None]:
     """Every explanation with a term that passed (``explain``), its base model and term refitted from scratch with
     :data:`CONFIRM_FACTOR` times ``maxfev`` rollouts per fit and judged by the same rule: the explanations that
     pass there too, the lowest validation error first (the gas in ambient air without its term where only the term
     fails, since the structure passed on its own; the paper's gas with no term where nothing is left), and the
     record of each for report.json (None where no term passed, so nothing was refitted); ``drift``: base fit -> the
-    footage's drift away from it (the wind's start); ``pool``: the first fits' workers, renewed for these fits. A
+    footage's drift away from it (the wind's start); ``pool``: the first fits' pool, renewed for these fits. A
     short search can stop where a term's extra parameter stands in for the base model's own: on the ScalarFlow
     capture at 96 rows buoyancy decay passed with 20.7 % after 20 rollouts a fit and gained 6.5 % after 60
     (BENCHMARKS.md, "Diagnose on the real capture at other observation heights"). The footage's effect passes after
@@ -250,11 +250,11 @@ def confirm(explanations: list, bases: dict, observed: Observed, sim: PlumeSimul
     terms = [(st, name) for st, name, _ in explanations if name != "none"]
     if not terms:
         return explanations, None
-    # a fitter of its own, so that the search spread (search_spread, from the fitter's record) stays the first fits'
-    fitter, longer = _fitter(sim, observed, train), CONFIRM_FACTOR * maxfev
+    longer = CONFIRM_FACTOR * maxfev
     structures = sorted({st for st, _ in terms})
     log.info("diagnose: confirming %s with %d rollouts a fit", ", ".join(f"{st} + {n}" for st, n in terms), longer)
-    pool.renew(fitter)
+    # a fitter of its own, so that the search spread (search_spread, from the fitter's record) stays the first fits'
+    fitter = pool.renew()
     tasks = [pool.submit(fit_structure, (st, longer)) for st in structures]
     refit = {st: task.result()[1] for st, task in zip(structures, tasks)}
     tasks = [pool.submit(fit_candidate, (refit[st], name, longer, drift(refit[st]))) for st, name in terms]

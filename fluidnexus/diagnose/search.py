@@ -68,6 +68,11 @@ class Fitter:
         #: the lowest training error scored so far of each model: (structure, extension names) -> error
         self.best: dict[tuple[str, tuple[str, ...]], float] = {}
 
+    def fresh(self) -> "Fitter":
+        """A fitter of the same simulator, footage, cameras, footprint and training window that has scored
+        nothing yet."""
+        return Fitter(self.sim, self.observed, self.cameras, self.sigma, self.train)
+
     def sigma_for(self, params: PlumeParams) -> float:
         """The particle footprint [px] of the structure of ``params`` (it follows its lattice spacing)."""
         return self.sigma * (AIR_SPACING if params.structure == "ambient_air" else 1.0)

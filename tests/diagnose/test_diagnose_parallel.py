@@ -72,11 +72,11 @@ def test_renewed_workers_start_the_phase_with_an_empty_record(ti_engine):
                        np.zeros((0, 3)))
     cameras, train = [], np.arange(2)
     first = Fitter(PlumeSimulator(setup), np.zeros((1, 4, 2, 2)), cameras, 1.0, train)
-    second = Fitter(first.sim, first.observed, cameras, 1.0, train)
     with FitPool(first, 2) as pool:
         before = pool.map(_probe, [(k,) for k in range(6)])
-        pool.renew(second)
+        second = pool.renew()
         after = pool.map(_probe, [(k,) for k in range(6, 12)])
+    assert second is not first and second.sim is first.sim and second.observed is first.observed
     assert {pid for pid, _ in after} <= {pid for pid, _ in before}  # the workers stayed
     for phase in (before, after):
         for pid in {p for p, _ in phase}:
