@@ -10,6 +10,10 @@ with its task's result, and results are collected in the order the tasks were st
 fitter's record in the order of a serial run and the search spread (``search.search_spread``) sees the same fits.
 The workers stay for the confirmation's refits (``FitPool.renew``): a worker's start (imports, Taichi, the
 kernels loaded) costs several seconds.
+
+The training errors of the models scored (``Fitter.known``) are handed on, so that a search does not roll out a
+model already scored: each task sees those of the tasks whose results were collected before it was started, with
+one job as with several, so which models are rolled out does not depend on ``jobs`` either.
 """
 from __future__ import annotations
 
@@ -62,6 +66,8 @@ class FitPool:
         self.fitter, self.jobs = fitter, jobs
         self._pool: ProcessPoolExecutor | None = None
         self._phase = 0
+        #: the training errors of the models scored by the tasks collected so far (``Fitter.known``)
+        self.known: dict[str, float] = dict(fitter.known)
 
     def renew(self) -> Fitter:
         """A new phase of the search (diagnose's confirmation): tasks submitted from now on fit for a fresh fitter
@@ -93,8 +99,10 @@ class FitPool:
         the order they were started: that is when a worker's scored models join ``fitter.scored`` (and its rollouts
         ``fitter.evaluations``)."""
         if self._pool is None:
-            return Task(self.fitter, result=fn(self.fitter, *args))
-        return Task(self.fitter, future=self._pool.submit(_run, fn, args, self._phase))
+            self.fitter.known = dict(self.known)
+            result = fn(self.fitter, *args)
+            return Task(self, done=(result, [], 0, _new(self.fitter.known, self.known)))
+        return Task(self, future=self._pool.submit(_run, fn, args, self._phase, dict(self.known)))
 
     def map(self, fn, arglists: list[tuple]) -> list:
         """``[fn(fitter, *args) for args in arglists]``, side by side."""
@@ -102,18 +110,26 @@ class FitPool:
 
 
 class Task:
-    """A started fit task: its result, from a worker's future or computed here."""
+    """A started fit task: its result, from a worker's future or computed here (``done``: the result, the models
+    scored, the rollouts run and the training errors learned, as ``_run`` returns them)."""
 
-    def __init__(self, fitter: Fitter, result=None, future=None):
-        self._fitter, self._result, self._future = fitter, result, future
+    def __init__(self, pool: FitPool, done: tuple | None = None, future=None):
+        self._pool, self._fitter, self._done, self._future = pool, pool.fitter, done, future
+        self._collected = False
 
     def result(self):
-        if self._future is not None:
-            result, scored, evaluations = self._future.result()
+        if not self._collected:  # its record joins the pool's
+            result, scored, evaluations, known = self._done if self._future is None else self._future.result()
             self._fitter.scored.extend(scored)
             self._fitter.evaluations += evaluations
-            self._result, self._future = result, None
+            self._pool.known.update(known)
+            self._result, self._collected = result, True
         return self._result
+
+
+def _new(known: dict, before: dict) -> dict:
+    """The entries of ``known`` that ``before`` lacks."""
+    return {key: err for key, err in known.items() if key not in before}
 
 
 def _start(config, setup, observed, cameras, sigma, train) -> None:
@@ -146,12 +162,13 @@ def _exit_with(parent: int, every: float = 1.0) -> None:
     threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
-def _run(fn, args: tuple, phase: int):
-    """One task of the pool's phase ``phase`` in a worker: its result, the models it scored and the rollouts it
-    ran."""
+def _run(fn, args: tuple, phase: int, known: dict):
+    """One task of the pool's phase ``phase`` in a worker, knowing the training errors ``known``: its result, the
+    models it scored, the rollouts it ran and the training errors it learned."""
     global _fitter, _phase
     if phase != _phase:
         _fitter, _phase = _fitter.fresh(), phase
     scored, evaluations = len(_fitter.scored), _fitter.evaluations
+    _fitter.known = dict(known)
     result = fn(_fitter, *args)
-    return result, _fitter.scored[scored:], _fitter.evaluations - evaluations
+    return result, _fitter.scored[scored:], _fitter.evaluations - evaluations, _new(_fitter.known, known)

@@ -92,6 +92,18 @@ class PlumeParams:
     def with_gain(self, gain: float) -> "PlumeParams":
         return replace(self, gain=float(gain))
 
+    def identity(self) -> str:
+        """What decides this model's rollout and its images up to their brightness: the parameters with the gain
+        left out and every extension at its null value dropped (the defaults of :data:`EXTENSIONS`; the gas in
+        ambient air's viscosity at its base's ``c``), since such a term reproduces the model without it exactly
+        (tests/diagnose/test_diagnose_null.py). Two parameter sets with the same identity score the same."""
+        def null(name, values):
+            default = {"c": self.c} if name == "viscosity" and self.structure == "ambient_air" else EXTENSIONS[name]
+            return all(np.all(np.asarray(values[k]) == np.asarray(v)) for k, v in default.items())
+
+        active = {name: values for name, values in self.extensions.items() if not null(name, values)}
+        return repr(replace(self, gain=1.0, extensions=dict(sorted(active.items()))))
+
 
 @dataclass(frozen=True)
 class PlumeSetup:

@@ -67,6 +67,9 @@ class Fitter:
         self.scored: list[tuple[str, tuple[str, ...], np.ndarray]] = []
         #: the lowest training error scored so far of each model: (structure, extension names) -> error
         self.best: dict[tuple[str, tuple[str, ...]], float] = {}
+        #: the training error of every model scored here or handed in (``FitPool``): its identity
+        #: (``PlumeParams.identity``) -> error; a search meets such a model again without rolling it out
+        self.known: dict[str, float] = {}
 
     def fresh(self) -> "Fitter":
         """A fitter of the same simulator, footage, cameras, footprint and training window that has scored
@@ -96,38 +99,54 @@ class Fitter:
         images = np.full(self.observed.shape, np.nan)
         images[:, :len(rollout)] = unit * params.gain
         errors = image_error(self.observed, images)
-        model = (params.structure, tuple(params.extensions))
         err = float(errors[self.train].mean())
-        best = self.best[model] = min(self.best.get(model, np.inf), err if np.isfinite(err) else np.inf)
+        self.known[params.identity()] = err
+        best = self._note_best(params, err)
         if rollout.rest is not None and (full or err <= (1 + (0.0 if params.extensions else SPREAD_TOLERANCE)) * best):
             done = len(rollout)
             rollout.extend()
             images[:, done:] = params.gain * render_rollout(rollout, unit_params, self.cameras, sigma, start=done)
             errors = image_error(self.observed, images)
-        self.scored.append((*model, errors))
+        self.scored.append((params.structure, tuple(params.extensions), errors))
         return Fit(params, rollout, images, errors)
+
+    def _note_best(self, params: PlumeParams, err: float) -> float:
+        """The lowest training error of the model of ``params`` (structure, extension names), ``err`` included."""
+        model = (params.structure, tuple(params.extensions))
+        self.best[model] = min(self.best.get(model, np.inf), err if np.isfinite(err) else np.inf)
+        return self.best[model]
 
     def train_error(self, fit: Fit) -> float:
         return float(fit.errors[self.train].mean())
 
     def minimise(self, make, x0, steps, maxfev: int) -> Fit:
-        """Nelder-Mead over x (``make(x) -> PlumeParams``) from x0 with initial simplex steps; the best fit."""
-        best: list = [None]
+        """Nelder-Mead over x (``make(x) -> PlumeParams``) from x0 with initial simplex steps; the best fit.
+
+        A model whose training error is known (``known``) is not rolled out again: a search that retraces another
+        (the confirmation's longer searches start as the first ones did, a candidate starts at its control) pays
+        only for its new models, and rolls out its best model once more at the end if that one was known."""
+        best: list = [None, np.inf]  # the best Fit, or the parameters of a known model; its training error
 
         def loss(x):
-            fit = self.evaluate(make(x))
-            err = self.train_error(fit)
+            params = make(x)
+            err = self.known.get(params.identity())
+            if err is None:
+                fit = self.evaluate(params)
+                err = self.train_error(fit)
+            else:  # as evaluate would have noted it
+                fit = params
+                self._note_best(params, err)
             if not np.isfinite(err):
                 return 1e9
-            if best[0] is None or err < self.train_error(best[0]):
-                best[0] = fit
+            if err < best[1]:
+                best[:] = [fit, err]
             return err
 
         x0 = np.asarray(x0, dtype=np.float64)
         simplex = np.vstack([x0] + [x0 + np.eye(len(x0))[i] * steps[i] for i in range(len(x0))])
         optimize.minimize(loss, x0, method="Nelder-Mead",
                           options={"initial_simplex": simplex, "maxfev": maxfev, "xatol": 1e-3, "fatol": 1e-4})
-        return best[0]
+        return best[0] if best[0] is None or isinstance(best[0], Fit) else self.evaluate(best[0])
 
 
 def fit_base(fitter: Fitter, maxfev: int, structure: str = "paper_gas") -> Fit:

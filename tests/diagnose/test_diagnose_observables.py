@@ -1,6 +1,8 @@
 """The observation model and the selection test of diagnose on cases with known answers."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -187,3 +189,48 @@ def test_confirmed_keeps_what_held_and_the_air_without_its_term():
     # a term on the paper's gas that fails leaves nothing (the caller falls back to the paper's gas with none)
     assert confirmed([("paper_gas", "buoyancy_decay", 0.51)], {("paper_gas", "buoyancy_decay"): False}, errors) == []
     assert confirmed([("ambient_air", "none", 0.30)], {}, errors) == [("ambient_air", "none", 0.30)]
+
+
+def test_a_search_does_not_roll_out_a_model_already_scored():
+    """A model whose training error is known (``Fitter.known``) is not rolled out again: a search that retraces a
+    shorter one (the confirmation's longer searches start as the first ones did) rolls out only its new models and
+    ends where the same search with nothing known ends. A term at its null value is the model without it
+    (``PlumeParams.identity``), so a candidate's start costs nothing once its control was scored."""
+    cams, T, train = cameras(), 8, np.arange(5)
+    observed = render_rollout(Rollout.start(LineOfPoints(T).frames(PlumeParams(alpha=0.0))), PlumeParams(gain=2.0),
+                              cams, 1.0)
+
+    def make(x):
+        return PlumeParams(alpha=float(x[0]))
+
+    def search(maxfev, known=None):
+        fitter = Fitter(LineOfPoints(T), observed, cams, 1.0, train)
+        fitter.known = dict(known or {})
+        return fitter, fitter.minimise(make, [0.09], [0.01], maxfev)
+
+    short, _ = search(4)
+    plain, alone = search(16)
+    retraced, fit = search(16, short.known)
+    assert short.evaluations == 4 and plain.evaluations > 8
+    assert retraced.evaluations == plain.evaluations - short.evaluations  # only the new models rolled out
+    assert fit.params == alone.params and abs(fit.params.alpha) < 0.01
+    np.testing.assert_array_equal(fit.errors, alone.errors)
+    # a candidate at its start (its term switched off) is its control: known, not rolled out
+    control = PlumeParams(alpha=0.02)
+    nulls = [("swirl", {"omega": 0.0}), ("buoyancy_decay", {"tau": np.inf}), ("wind", {"velocity": (0.0,) * 3})]
+    for term, null in nulls:
+        assert replace(control, gain=3.0, extensions={term: null}).identity() == control.identity()
+    assert replace(control, extensions={"swirl": {"omega": 0.5}}).identity() != control.identity()
+    air = PlumeParams(alpha=-0.1, c=0.4, structure="ambient_air")
+    assert replace(air, extensions={"viscosity": {"c": 0.4}}).identity() == air.identity()  # the air's own XSPH
+    assert replace(air, extensions={"viscosity": {"c": 0.0}}).identity() != air.identity()
+    fitter = Fitter(LineOfPoints(T), observed, cams, 1.0, train)
+    fitter.evaluate(control)
+    calls = []
+
+    def candidate(x):
+        calls.append(x)
+        return replace(control, alpha=float(x[0]), extensions={"swirl": {"omega": float(x[1])}})
+
+    best = fitter.minimise(candidate, [0.02, 0.0], [0.01, 0.5], 8)
+    assert fitter.evaluations == 1 + len(calls) - 1 and best.params.alpha < 0.02

@@ -9,6 +9,12 @@ import pytest
 from clirun import invoke, ok  # noqa: F401  (re-exported to the tests of this folder)
 
 
+def model_file(path, model):
+    """``path`` written as a model file (``predict --model``) holding ``model`` (an engine ModelConfig)."""
+    path.write_text(json.dumps({"format": "fluidnexus-model/1", "model": model.to_dict()}))
+    return path
+
+
 @pytest.fixture(scope="session")
 def start_run(tmp_path_factory, ti_engine):
     """Run folder with frame 0: stabilised physical particles and a visual cylinder over the source (68x120)."""

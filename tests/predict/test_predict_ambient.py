@@ -16,16 +16,10 @@ from fluidnexus.engine import AmbientAir, ModelConfig
 from fluidnexus.engine.forces import Buoyancy, Viscosity
 from fluidnexus.runs import open_run
 
-from .conftest import invoke, ok
+from .conftest import invoke, model_file, ok
 
 TERMS = (Buoyancy(alpha=-0.1), Viscosity(c=0.3))  # diagnose's kind of model: buoyancy and XSPH, no drag
 AIR = ModelConfig(TERMS, AmbientAir())
-
-
-def _model_file(folder: Path, model: ModelConfig) -> Path:
-    path = folder / f"{model.structure}.json"
-    path.write_text(json.dumps({"format": "fluidnexus-model/1", "model": model.to_dict()}))
-    return path
 
 
 def _digest(run_dir: Path) -> dict:
@@ -45,7 +39,7 @@ def paper_gas_future(start_run, folder: Path) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     out = folder / "paper"
     ok("predict", start_run, "--frames", 3, "--out", out, "--no-refit", "--arch", "cpu",
-       "--model", _model_file(folder, ModelConfig(TERMS)))
+       "--model", model_file(folder / "paper_gas.json", ModelConfig(TERMS)))
     return out
 
 
@@ -71,7 +65,7 @@ def air_future(start_run, tmp_path_factory):
     """``predict --no-refit`` of 4 frames with the ambient-air model.json."""
     root = tmp_path_factory.mktemp("air")
     ok("predict", start_run, "--frames", 4, "--out", root / "future", "--no-refit", "--arch", "cpu",
-       "--model", _model_file(root, AIR))
+       "--model", model_file(root / "ambient_air.json", AIR))
     return root / "future"
 
 
@@ -127,7 +121,7 @@ def test_interact_wind_moves_the_air_plume_downwind(start_run, air_future, tmp_p
     calm prediction's; the re-fit's model is the run's paper gas with the same wind term."""
     out = tmp_path / "windy"
     ok("interact", start_run, "--wind", "3,0,0", "--frames", 2, "--out", out, "--no-refit", "--arch", "cpu",
-       "--model", _model_file(tmp_path, AIR))
+       "--model", model_file(tmp_path / "ambient_air.json", AIR))
     windy, calm = open_run(out).state(2), open_run(air_future).state(2)
     for a, b in ((windy.physical_positions, calm.physical_positions), (windy.visual_positions, calm.visual_positions)):
         shift = a.mean(0) - b.mean(0)
@@ -170,14 +164,14 @@ def test_memory_estimate_counts_the_air(start_run, tmp_path):
     assert air.parts["smoke and air particles"] >= physical_bytes(n_air, ctx.solver.iterations)
     limit = (paper.total + air.total) // 2
     result = invoke("predict", start_run, "--frames", 4, "--out", tmp_path / "x", "--no-refit", "--arch", "cpu",
-                    "--no-calibrate", "--model", _model_file(tmp_path, AIR), "--max-memory", limit)
+                    "--no-calibrate", "--model", model_file(tmp_path / "ambient_air.json", AIR), "--max-memory", limit)
     assert_clean_failure(result, "smoke and air particles")
     assert not (tmp_path / "x").exists()
 
 
 def test_recon_refuses_the_ambient_air_model(start_run, tmp_path):
     result = invoke("recon", start_run.parent / "scene", "--out", tmp_path / "r", "--model",
-                    _model_file(tmp_path, AIR), "--arch", "cpu")
+                    model_file(tmp_path / "ambient_air.json", AIR), "--arch", "cpu")
     assert_clean_failure(result, "ambient_air", "recon")
     assert not (tmp_path / "r").exists()
 
@@ -196,7 +190,8 @@ def test_refit_model_is_the_runs_paper_gas_with_the_wind():
 def test_ambient_air_refit_writes_a_run(start_run, tmp_path):
     """The re-fit after refining runs the run's paper gas on the air rollout's renders."""
     out = tmp_path / "refit"
-    ok("predict", start_run, "--frames", 2, "--out", out, "--arch", "cpu", "--model", _model_file(tmp_path, AIR))
+    ok("predict", start_run, "--frames", 2, "--out", out, "--arch", "cpu", "--model",
+       model_file(tmp_path / "ambient_air.json", AIR))
     pred = open_run(out)
     assert pred.frames == [1, 2] and ModelConfig.from_dict(pred.config["fit_model"]).air is None
     n0 = len(open_run(start_run).state(0).physical_positions)

@@ -2,21 +2,14 @@
 alpha the future's gas widens; recon refuses such a model."""
 from __future__ import annotations
 
-import json
-
 import numpy as np
 from clirun import assert_clean_failure
 
 from fluidnexus.engine import Entrainment, ModelConfig
 from fluidnexus.runs import open_run
 
-from .conftest import invoke, ok
+from .conftest import invoke, model_file, ok
 from .test_predict_ambient import TERMS, _digest, paper_gas_future
-
-
-def _model_file(path, model: ModelConfig):
-    path.write_text(json.dumps({"format": "fluidnexus-model/1", "model": model.to_dict()}))
-    return path
 
 
 def _width(run_dir, frame: int) -> float:
@@ -29,7 +22,7 @@ def test_predict_rolls_the_entrainment_out(start_run, tmp_path):
     for alpha in (0.0, 0.3):
         out = futures[alpha] = tmp_path / f"alpha{alpha}"
         ok("predict", start_run, "--frames", 3, "--out", out, "--no-refit", "--arch", "cpu", "--model",
-           _model_file(tmp_path / f"m{alpha}.json", ModelConfig(TERMS, entrainment=Entrainment(alpha))))
+           model_file(tmp_path / f"m{alpha}.json", ModelConfig(TERMS, entrainment=Entrainment(alpha))))
         assert open_run(out).config["model"]["entrainment"] == {"alpha": alpha}
     # alpha 0: the same frames as the paper's gas without the term
     assert _digest(futures[0.0]) == _digest(paper_gas_future(start_run, tmp_path / "without"))
@@ -37,7 +30,7 @@ def test_predict_rolls_the_entrainment_out(start_run, tmp_path):
 
 
 def test_recon_refuses_a_model_with_entrainment(start_run, tmp_path):
-    model = _model_file(tmp_path / "m.json", ModelConfig(TERMS, entrainment=Entrainment(0.1)))
+    model = model_file(tmp_path / "m.json", ModelConfig(TERMS, entrainment=Entrainment(0.1)))
     result = invoke("recon", start_run.parent / "scene", "--out", tmp_path / "r", "--model", model, "--arch", "cpu")
     assert_clean_failure(result, "entrainment", "recon")
     assert not (tmp_path / "r").exists()
