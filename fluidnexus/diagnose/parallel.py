@@ -73,7 +73,8 @@ class FitPool:
         """A new phase of the search (diagnose's confirmation): tasks submitted from now on fit for a fresh fitter
         (``Fitter.fresh``), which is returned. Each worker renews its own fitter at its first task of the phase, so
         it starts from an empty record as a newly started worker would (the record decides which rollouts run past
-        the training frames), and keeps its compiled kernels."""
+        the training frames), and keeps its compiled kernels. The training errors known so far (``known``) stay
+        known: the phase's fitter has the same simulator, footage and training window."""
         self.fitter = self.fitter.fresh()
         self._phase += 1
         return self.fitter

@@ -101,8 +101,12 @@ class PlumeParams:
             default = {"c": self.c} if name == "viscosity" and self.structure == "ambient_air" else EXTENSIONS[name]
             return all(np.all(np.asarray(values[k]) == np.asarray(v)) for k, v in default.items())
 
-        active = {name: values for name, values in self.extensions.items() if not null(name, values)}
-        return repr(replace(self, gain=1.0, extensions=dict(sorted(active.items()))))
+        def exact(values) -> tuple:  # every value in full (repr of an array or a float32 rounds)
+            return tuple(float(v).hex() for v in np.ravel(np.asarray(values, np.float64)))
+
+        terms = tuple((name, tuple((k, exact(v)) for k, v in sorted(values.items())))
+                      for name, values in sorted(self.extensions.items()) if not null(name, values))
+        return repr((self.structure, exact([self.alpha, self.k, self.layers, self.inflow, self.c]), terms))
 
 
 @dataclass(frozen=True)

@@ -274,8 +274,8 @@ def _confirmation_text(confirmation: dict | None) -> list[str]:
     if confirmation is None:
         return []
     lines = ["", f"Every term that passed was refitted from scratch, with its base model, with {confirmation['evals']} "
-                 f"rollouts a fit ({confirmation['rollouts']} rolled out: a model the first searches had scored is "
-                 "not rolled out again) and judged by the same rule: a short search "
+                 f"rollouts a fit ({confirmation['rollouts']} rolled out: a model already scored is not rolled out "
+                 "again) and judged by the same rule: a short search "
                  "can stop where a term's extra parameter stands in for the base model's own, the footage's effect "
                  "passes after either."]
     for r in confirmation["explanations"]:

@@ -63,11 +63,13 @@ class Fitter:
         self.sim, self.observed, self.cameras, self.sigma = sim, observed, cameras, sigma_px
         self.train = train
         self.evaluations = 0
-        #: every model scored so far: (its structure, its extension names, image error per frame [T])
+        #: every fit scored so far, each model once where searches met it again (``minimise``): (its structure, its
+        #: extension names, image error per frame [T])
         self.scored: list[tuple[str, tuple[str, ...], np.ndarray]] = []
-        #: the lowest training error scored so far of each model: (structure, extension names) -> error
+        #: the lowest training error of each model, (structure, extension names) -> error, over the fits scored so
+        #: far and the known errors a search met (``minimise``)
         self.best: dict[tuple[str, tuple[str, ...]], float] = {}
-        #: the training error of every model scored here or handed in (``FitPool``): its identity
+        #: the training error of every model rolled out here or handed in (``FitPool``): its identity
         #: (``PlumeParams.identity``) -> error; a search meets such a model again without rolling it out
         self.known: dict[str, float] = {}
 
@@ -84,12 +86,13 @@ class Fitter:
         """Roll out (unless given), render, fit the gain on the training frames, score every frame.
 
         A new rollout stops after the training frames unless its training error is the lowest of its model
-        (structure and extensions) so far, or for a base model (no extension) within :data:`SPREAD_TOLERANCE` of
-        it: only such a fit can be its search's best or count in the search spread (:func:`search_spread`), the
-        only readers of the validation frames (and ``full``: simulate every frame regardless). The frames it did not
-        simulate score NaN.
+        (structure and extensions) so far (``best``), or for a base model (no extension) within
+        :data:`SPREAD_TOLERANCE` of it: only such a fit can be its search's best or count in the search spread
+        (:func:`search_spread`), the only readers of the validation frames (and ``full``: simulate every frame
+        regardless). The frames it did not simulate score NaN.
         """
-        if rollout is None:
+        new = rollout is None
+        if new:
             rollout = Rollout.start(self.sim.frames(params), int(self.train.max()) + 1)
             self.evaluations += 1
         unit_params, sigma = params.with_gain(1.0), self.sigma_for(params)
@@ -100,7 +103,8 @@ class Fitter:
         images[:, :len(rollout)] = unit * params.gain
         errors = image_error(self.observed, images)
         err = float(errors[self.train].mean())
-        self.known[params.identity()] = err
+        if new:  # a rollout given by the caller may be another model's
+            self.known[params.identity()] = err
         best = self._note_best(params, err)
         if rollout.rest is not None and (full or err <= (1 + (0.0 if params.extensions else SPREAD_TOLERANCE)) * best):
             done = len(rollout)

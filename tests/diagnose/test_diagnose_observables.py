@@ -195,7 +195,8 @@ def test_a_search_does_not_roll_out_a_model_already_scored():
     """A model whose training error is known (``Fitter.known``) is not rolled out again: a search that retraces a
     shorter one (the confirmation's longer searches start as the first ones did) rolls out only its new models and
     ends where the same search with nothing known ends. A term at its null value is the model without it
-    (``PlumeParams.identity``), so a candidate's start costs nothing once its control was scored."""
+    (``PlumeParams.identity``), so a candidate that starts with its term off costs nothing there once its control
+    was scored."""
     cams, T, train = cameras(), 8, np.arange(5)
     observed = render_rollout(Rollout.start(LineOfPoints(T).frames(PlumeParams(alpha=0.0))), PlumeParams(gain=2.0),
                               cams, 1.0)
@@ -208,14 +209,19 @@ def test_a_search_does_not_roll_out_a_model_already_scored():
         fitter.known = dict(known or {})
         return fitter, fitter.minimise(make, [0.09], [0.01], maxfev)
 
-    short, _ = search(4)
+    short, short_fit = search(4)
     plain, alone = search(16)
     retraced, fit = search(16, short.known)
     assert short.evaluations == 4 and plain.evaluations > 8
     assert retraced.evaluations == plain.evaluations - short.evaluations  # only the new models rolled out
     assert fit.params == alone.params and abs(fit.params.alpha) < 0.01
     np.testing.assert_array_equal(fit.errors, alone.errors)
-    # a candidate at its start (its term switched off) is its control: known, not rolled out
+    # a search that meets only known models rolls out its best once more, scoring it as it was scored
+    again, refit = search(4, short.known)
+    assert again.evaluations == 1 and refit.params == short_fit.params
+    np.testing.assert_array_equal(refit.errors, short_fit.errors)
+    assert np.isfinite(refit.errors).all()
+    # a candidate at a start with its term switched off (swirl, vorticity, viscosity) is its control
     control = PlumeParams(alpha=0.02)
     nulls = [("swirl", {"omega": 0.0}), ("buoyancy_decay", {"tau": np.inf}), ("wind", {"velocity": (0.0,) * 3})]
     for term, null in nulls:
