@@ -127,8 +127,9 @@ class Fitter:
         """Nelder-Mead over x (``make(x) -> PlumeParams``) from x0 with initial simplex steps; the best fit.
 
         A model whose training error is known (``known``) is not rolled out again: a search that retraces another
-        (the confirmation's longer searches start as the first ones did, a candidate starts at its control) pays
-        only for its new models, and rolls out its best model once more at the end if that one was known."""
+        (the confirmation's longer searches start as the first ones did, a control at its base's best model, swirl,
+        vorticity and viscosity at their control with the term off) pays only for its new models, and rolls out its
+        best model once more at the end if that one was known."""
         best: list = [None, np.inf]  # the best Fit, or the parameters of a known model; its training error
 
         def loss(x):

@@ -4,9 +4,9 @@ Each test hides one effect (or two) at a magnitude drawn from a seeded range, ru
 0:32, validate 32:48; the burst 90 frames, 0:60 and 60:90) and requires the right name. Each diagnose fits both
 model structures and tries the candidates on the paper's gas and, where the air passes, on the air too, its fits
 side by side in as many processes as there are cores (``--jobs``, at most 6), and refits a term that passes with
-three times the rollouts (run.confirm): this file's fast tier 417-505 s in one process on the 2-core VM of
-2026-12-02 (the dissipation 181-233 s, entrainment 99-119, the plain plume 70-87, the paper's-gas control 53-64;
-BENCHMARKS.md, "Diagnose's time on small plumes"). ``make test`` runs the fast tier (the plain plume, the
+three times the rollouts (run.confirm): this file's fast tier about 430 s in one process on the 2-core VM of
+2026-12-02 (the dissipation 178 s, entrainment 95, the plain plume 88, the paper's-gas control 58; BENCHMARKS.md,
+"Diagnose: a model already scored is not rolled out again"). ``make test`` runs the fast tier (the plain plume, the
 paper's-gas control, entrainment in the paper's gas, dissipation) and the visibility test; ``make test-slow`` runs
 the rest (the wind among them: 422 s alone). Buoyancy decay, vorticity confinement, viscosity
 and swirl are ``xfail``: their data differ from a plain plume with the same generator constants
