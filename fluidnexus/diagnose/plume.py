@@ -202,7 +202,7 @@ class Rollout:
 
 
 class PlumeSimulator:
-    """Rolls the plume forward; keeps one engine simulator per set of active force terms."""
+    """Rolls the plume forward; keeps one engine simulator per structure, its terms set per model."""
 
     def __init__(self, setup: PlumeSetup, obstacle=None):
         """``obstacle``: the engine body of ``setup.obstacles`` when this process has built it already."""
@@ -214,13 +214,12 @@ class PlumeSimulator:
         self.obstacle = obstacle
 
     def _simulator(self, model: ModelConfig, capacity: int) -> PBFSimulator:
-        kinds = (model.structure,) + tuple(t.kind for t in model.terms)
-        sim = self._sims.get(kinds)
-        if sim is None:
-            sim = self._sims[kinds] = PBFSimulator(capacity, self.setup.solver_for(model.structure), model)
+        sim = self._sims.get(model.structure)
+        if sim is None or sim.capacity < capacity:
+            sim = self._sims[model.structure] = PBFSimulator(capacity, self.setup.solver_for(model.structure), model)
             sim.set_obstacle(self.obstacle)
         else:
-            sim.set_model(model)  # the parameters, and the entrainment, which is no kernel term
+            sim.set_model(model)  # its terms and parameters (the entrainment too, which is no kernel term)
         return sim
 
     def frames(self, params: PlumeParams) -> Iterator[tuple[np.ndarray, np.ndarray]]:

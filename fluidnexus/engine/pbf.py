@@ -259,7 +259,7 @@ class PBFSimulator:
         self._grad_fields = [self.p, self.u, self.u_out, self.force, self.rho_pre, self.x, self.rho, self.gsq,
                              self.lam, self.gsum, self.dp]
         self._workspaces: dict = {}
-        self.theta = None
+        self._thetas: dict = {}  # parameter count -> its field (set_model)
         self.set_model(self.model)
         self._tape: list = []
         self.token = None
@@ -276,19 +276,25 @@ class PBFSimulator:
         self.token = None
 
     def set_model(self, model: ModelConfig) -> None:
-        """Use ``model`` (terms and parameter values) from the next step on; with as many parameters as the last
-        model, its parameter field is reused (the kernels are not compiled again)."""
+        """Use ``model`` (terms and parameter values) from the next step on. The particles' fields and tables stay,
+        and one parameter field is kept per parameter count, so a model of other terms compiles only its terms'
+        kernels once, and the kernels it shares with the models before it are not compiled again."""
         self.model = model
         self._offsets = model.offsets()
         size = max(1, len(model.param_names()))
-        if self.theta is None or self.theta.shape[0] != size:
-            self.theta = ti.field(real(), shape=size, needs_grad=True)
+        if size not in self._thetas:
+            self._thetas[size] = ti.field(real(), shape=size, needs_grad=True)
+        self.theta = self._thetas[size]
         self.load_theta(model.to_vector())
         for term in model.terms:
             for name, dims in term.workspace:
                 key = (term.kind, name)
                 if key not in self._workspaces:
                     self._workspaces[key] = ti.Vector.field(dims, real(), shape=self.capacity, needs_grad=True)
+
+    def _active_workspaces(self) -> list:
+        """The workspace fields of the model's terms (those of earlier models' terms stay, unused)."""
+        return [self._workspaces[(t.kind, name)] for t in self.model.terms for name, _ in t.workspace]
 
     def load_theta(self, theta) -> None:
         """Set the model parameters from a vector [P] in the layout of ``model.param_names()``."""
@@ -342,7 +348,7 @@ class PBFSimulator:
         h, wc, gc = s.h, poly6_coef(s.h), spiky_coef(s.h)
         w0 = wc * h**6
         self._tape = []
-        for f in [self.force] + list(self._workspaces.values()):
+        for f in [self.force] + self._active_workspaces():
             f.fill(0)
         self.rho_pre.fill(w0)
         if any(t.needs_neighbors for t in self.model.terms):
@@ -396,7 +402,7 @@ class PBFSimulator:
             raise RuntimeError("backward() needs a forward() on the loaded state first")
         if self.obstacle is not None:
             raise RuntimeError("a step with an obstacle is not differentiated (set_obstacle(None) first)")
-        for f in self._grad_fields + list(self._workspaces.values()) + [self.theta]:
+        for f in self._grad_fields + self._active_workspaces() + [self.theta]:
             f.grad.fill(0)
         zeros = torch.zeros((self.n, 3), dtype=tensors.torch_dtype())
         tensors.load(self.x.grad, zeros if grad_p is None else grad_p, row=self.solver.iterations)

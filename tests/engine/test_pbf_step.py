@@ -54,6 +54,33 @@ def test_step_matches_reference_forward_and_gradients(ti_engine, averaging, volu
     assert th.grad.abs().min() > 0  # every model parameter receives a gradient
 
 
+def test_a_simulator_given_other_terms_steps_as_a_new_one(ti_engine):
+    """``set_model`` keeps the particles' fields and tables (diagnose's one simulator per structure): a step after
+    models of other terms and other parameter counts, forward and gradients, is bit for bit a new simulator's."""
+    engine = ti_engine
+    solver = engine.SolverConfig(iterations=3, rest_density=1.2e6)
+    models = [engine.ModelConfig((engine.Buoyancy(alpha=-3.0), engine.Drag(k=3.0), engine.Vorticity(epsilon=0.3))),
+              engine.ModelConfig((engine.Buoyancy(alpha=-2.0), engine.Drag(k=1.0), engine.Viscosity(c=0.2))),
+              engine.ModelConfig((engine.Buoyancy(alpha=-4.0, decay=0.5),)),
+              engine.ModelConfig((engine.Buoyancy(alpha=-3.0), engine.Drag(k=3.0), engine.Vorticity(epsilon=0.3)))]
+    p, u, age = _state()
+    rng = np.random.default_rng(3)
+    wp, wu = torch.tensor(rng.normal(size=p.shape)), torch.tensor(rng.normal(size=p.shape))
+
+    def step(sim, model):
+        P, U = torch.tensor(p, requires_grad=True), torch.tensor(u, requires_grad=True)
+        th = torch.tensor(model.to_vector(), requires_grad=True)
+        p1, u1 = engine.simulate_step(P, U, th, sim, torch.tensor(age))
+        ((p1 * wp).sum() + (u1 * wu).sum()).backward()
+        return p1.detach(), u1.detach(), P.grad, U.grad, th.grad
+
+    shared = engine.PBFSimulator(64, solver, models[0])
+    for model in models:
+        shared.set_model(model)
+        for a, b in zip(step(shared, model), step(engine.PBFSimulator(64, solver, model), model)):
+            assert torch.equal(a, b)
+
+
 def test_step_gradients_match_finite_differences(ti_engine):
     engine = ti_engine
     model = _all_terms(engine)
