@@ -5,17 +5,19 @@ The fit is a small 3D Gaussian splatting optimisation (Kerbl et al. 2023):
 
 - **Initialisation** (seeds of opacity ``initial_opacity``, each as wide as its spacing): for each camera a jittered
   grid of rays through its image, each seeding one Gaussian with its plate's colour at the depth plane-sweep
-  stereo finds and another view confirms (``scenery.stereo``); the lattice nodes of the volume that no
-  view sees through (``scenery.static_hull``: a surface without texture, which the stereo cannot place); a ray
-  without a confirmed depth seeds where it meets the floor if that is nearer, else on a shell ``shell``
-  half-diagonals beyond the volume's centre (and beyond every input camera, ``shell_cameras``), when its view
-  shows a textured backdrop (which hides the seed from other cameras), and nothing otherwise; a single view over a
-  textured backdrop also seeds the floor it does not see (``scenery.view_floor``). A ray or node showing the
+  stereo finds and one of its partners confirms (``scenery.stereo``: views within 60 degrees of it); the lattice
+  nodes of the volume that no view sees through (``scenery.static_hull``: a surface without texture, which the
+  stereo cannot place); a ray without a confirmed depth seeds where it meets the floor if that is nearer, else on
+  a shell ``shell`` half-diagonals beyond the volume's centre (and beyond every input camera, ``shell_cameras``),
+  when its view shows a textured backdrop (which hides the seed from other cameras), and nothing otherwise; a
+  **lone** view (over a textured backdrop, without a stereo partner: a single view, a ring's views) also carves
+  the hull where its rays seed; a single view over a textured backdrop also seeds the floor it does not see
+  (``scenery.view_floor``). A ray or node showing the
   background colour (within ``plain``) seeds nothing: a plain colour has no depth, and the learned
   background colour already shows it (a white backdrop is not filled with white Gaussians). What lies beyond
   every Gaussian is one learned colour, initialised to the scene's known backdrop colour (PINF's
-  ``frame_bkg_color``: Game's black sky), else for a single view that shows a floor over a textured backdrop to the
-  mean of its pixels off the floor, else to the plates' median.
+  ``frame_bkg_color``: Game's black sky), else where lone views show a floor to the mean of their pixels off the
+  floor, else to the plates' median.
 - **Loss** per view: ``0.8 L1 + 0.2 (1 - SSIM)`` (the reconstruction's image loss) weighted by the plate's
   confidence w: the target is ``w plate + (1 - w) render`` and the render's gradient is scaled by w (the render's
   share held fixed), so a pixel of confidence 0 (smoke that never left) pulls nothing and what the plate shows
@@ -51,7 +53,7 @@ from ..progress import progress
 from ..scene_scale import box_size
 from .static_hull import hull_points, in_box
 from .stereo import DepthMap, StereoConfig, depth_maps
-from .view_floor import floor_beyond_frame
+from .view_floor import floor_beyond_frame, wall_colour
 from .view_objects import object_seeds
 
 STATIC_FILE = "static.npz"
@@ -151,18 +153,18 @@ def render_static(layer: StaticLayer, camera: Camera, return_depth: bool = False
 
 # ---- initialisation ------------------------------------------------------------------------------------------
 def _ray_seeds(index: int, cameras, plates, confidences, depth: DepthMap, fill: np.ndarray, lo: np.ndarray,
-               hi: np.ndarray, cfg: StaticConfig, generator: torch.Generator, alone: bool,
+               hi: np.ndarray, cfg: StaticConfig, generator: torch.Generator, lone: bool,
                floor=None) -> tuple[np.ndarray, np.ndarray]:
     """One seed per ray of a jittered grid through view ``index``'s image with its plate's colour (``fill`` where
     the plate is unsure, confidence under 0.5), at the ray's stereo depth where another view confirms it. A ray
-    without a confirmed depth seeds where it meets ``floor`` if nearer, else on the shell behind everything, when
-    the view shows a textured backdrop (``alone``, the only view over one, or :func:`_sees_backdrop`: a part of
-    the floor or the wall this view alone sees shows there, and the wall hides it from other cameras), and nothing
-    otherwise: over a plain backdrop nothing would hide a far seed from a camera looking the other way, and such
-    rays are a textureless object (whose hull the volume seeds fill) or a plate's error (smoke that sat still).
-    Rays showing the background colour (within ``cfg.plain`` of ``fill``) seed nothing."""
+    without a confirmed depth seeds at its assumed depth (:func:`assumed_depth`: the floor, else the shell behind
+    everything) when the view shows a textured backdrop (``lone``: a view over one that no other view can confirm,
+    the only view or one without a stereo partner; or :func:`_sees_backdrop`: a part of the floor or the wall this
+    view alone sees shows there, and the wall hides it from other cameras), and nothing otherwise: over a plain
+    backdrop nothing would hide a far seed from a camera looking the other way, and such rays are a textureless
+    object (whose hull the volume seeds fill) or a plate's error (smoke that sat still). Rays showing the
+    background colour (within ``cfg.plain`` of ``fill``) seed nothing."""
     camera, plate, confidence = cameras[index], plates[index], confidences[index]
-    center = 0.5 * (lo + hi)
     h, w = plate.shape[:2]
     cols = (np.arange(cfg.rays) + 0.5) * w / cfg.rays
     rows = (np.arange(cfg.rays) + 0.5) * h / cfg.rays
@@ -172,17 +174,23 @@ def _ray_seeds(index: int, cameras, plates, confidences, depth: DepthMap, fill: 
     z = depth.at(uv, w, h)
     pix = np.clip(uv.astype(int), 0, [w - 1, h - 1])
     confirmed = np.isfinite(z)
-    shell = np.full(len(uv), float(np.linalg.norm(camera.center - center)) + shell_radius(cameras, lo, hi, cfg))
-    room = alone or _sees_backdrop(depth, lo, hi, cfg)
-    if room and floor is not None:
-        shell = np.minimum(shell, floor_depth(camera, uv, floor))
-    z = np.where(confirmed, z, shell)
+    room = lone or _sees_backdrop(depth, lo, hi, cfg)
+    z = np.where(confirmed, z, assumed_depth(camera, uv, cameras, lo, hi, cfg, floor if room else None))
     points = camera.unproject(uv, z)
     colors = np.array(plate[pix[:, 1], pix[:, 0]], np.float64).reshape(len(uv), -1)
     colors[confidence[pix[:, 1], pix[:, 0]] < 0.5] = fill
     # a plain colour has no depth (every depth agrees): what shows the background colour is left to it
     content = (np.abs(colors - fill).max(axis=1) > cfg.plain) & (confirmed | room)
     return points[content], colors[content]
+
+
+def assumed_depth(camera, uv: np.ndarray, cameras, lo: np.ndarray, hi: np.ndarray, cfg: StaticConfig,
+                  floor=None) -> np.ndarray:
+    """[N] the camera-space depth at which a ray without a confirmed depth seeds: where it meets ``floor`` (when
+    given and nearer), else on the shell (:func:`shell_radius` beyond the volume's centre)."""
+    center = 0.5 * (lo + hi)
+    shell = np.full(len(uv), float(np.linalg.norm(camera.center - center)) + shell_radius(cameras, lo, hi, cfg))
+    return shell if floor is None else np.minimum(shell, floor_depth(camera, uv, floor))
 
 
 def _textured(plate: np.ndarray, confidence: np.ndarray, fill: np.ndarray, cfg: StaticConfig) -> bool:
@@ -229,33 +237,40 @@ def _sees_backdrop(depth: DepthMap, lo: np.ndarray, hi: np.ndarray, cfg: StaticC
 def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backdrop=None, floor=None,
                   anchor=None) -> StaticLayer:
     """The seeds of a fit (module docstring), deterministic in ``cfg.seed``; plate pixels with confidence under
-    0.5 are not read. The background colour is ``backdrop`` (RGB) when given, else (a single view over a textured
-    backdrop that shows the floor) the mean colour of its sure pixels off the floor, else the median colour of the
-    sure pixels of every plate. A single view over a plain backdrop with an ``anchor`` seeds its objects' surfaces
-    there (``view_objects``)."""
+    0.5 are not read. The background colour is ``backdrop`` (RGB) when given, else (lone views that show the
+    floor) the mean of their mean colours off the floor, else the median colour of the sure pixels of every plate.
+    A single view over a plain backdrop with an ``anchor`` seeds its objects' surfaces there (``view_objects``)."""
     lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
     generator = torch.Generator().manual_seed(cfg.seed)
     sure = np.concatenate([p[c >= 0.5] for p, c in zip(plates, confidences)])
     if len(sure) == 0:
         raise InputError(None, "backgrounds", "every plate pixel has confidence under 0.5: nothing to fit")
     background = np.median(sure, axis=0) if backdrop is None else _channels(backdrop, sure.shape[-1])
-    alone = len(cameras) == 1 and _textured(plates[0], confidences[0], background, cfg)  # one view of a room
-    center, radius, near = 0.5 * (lo + hi), shell_radius(cameras, lo, hi, cfg), 0.5 * float(np.linalg.norm(hi - lo))
-    beyond = None  # a single view's floor beyond its frame, and its walls' colour (``view_floor``)
-    if alone and floor is not None:
-        beyond = floor_beyond_frame(cameras[0], plates[0], confidences[0], floor, center, radius, near,
-                                    cfg.rays * cfg.rays)
-        if backdrop is None and beyond[3] is not None:
-            background = beyond[3]
     depths = depth_maps(cameras, plates, confidences, lo, hi, cfg.stereo)
-    nodes, node_colors = hull_points(depths, lo, hi, background, cfg.lattice, cfg.plain,
+    # the views over a textured backdrop that no other view can confirm (a single video of a room, a ring's views)
+    lone = [not d.partners and _textured(p, c, background, cfg) for d, p, c in zip(depths, plates, confidences)]
+    alone = len(cameras) == 1 and lone[0]  # one view of a room
+    center, radius, near = 0.5 * (lo + hi), shell_radius(cameras, lo, hi, cfg), 0.5 * float(np.linalg.norm(hi - lo))
+    walls = [] if floor is None or backdrop is not None else [
+        w for w in (wall_colour(cameras[i], plates[i], confidences[i], floor, center, radius, near)
+                    for i in range(len(cameras)) if lone[i]) if w is not None]
+    if walls:  # what the lone views show above the floor: the colour of what no view saw
+        background = np.mean(walls, axis=0)
+    # a single view's floor beyond its frame (``view_floor``)
+    beyond = floor_beyond_frame(cameras[0], plates[0], confidences[0], floor, center, radius, near,
+                                cfg.rays * cfg.rays) if alone and floor is not None else None
+    # a lone view carves the hull where its rays seed: nothing of what it shows stands in front of that
+    carving = [DepthMap(d.camera, assumed_depth(d.camera, _pixel_centres(d.camera), cameras, lo, hi, cfg, floor)
+                        .reshape(d.depth.shape), d.plate, d.confidence) if lonely else d
+               for d, lonely in zip(depths, lone)]
+    nodes, node_colors = hull_points(carving, lo, hi, background, cfg.lattice, cfg.plain,
                                      inner_tolerance=cfg.inner_tolerance, views_needed=cfg.hull_views)
     node_spacing = box_size(hi - lo) / cfg.lattice
     points, colors = [nodes], [node_colors]
     spacing = [np.full(len(nodes), node_spacing)]
     for index, camera in enumerate(cameras):
         p, c = _ray_seeds(index, cameras, plates, confidences, depths[index], background, lo, hi, cfg, generator,
-                          alone, floor)
+                          lone[index], floor)
         points.append(p)
         colors.append(c)
         # each seed as wide as its ray's pixel footprint at its depth
@@ -281,6 +296,11 @@ def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backd
     return StaticLayer(means.astype(np.float32), np.tile(0.5 * spacing[:, None], (1, 3)).astype(np.float32),
                        quats.astype(np.float32), np.full(len(means), cfg.initial_opacity, np.float32),
                        colors.astype(np.float32), background.astype(np.float32), info)
+
+
+def _pixel_centres(camera) -> np.ndarray:
+    rows, cols = np.mgrid[0:camera.height, 0:camera.width]
+    return np.stack([cols.ravel() + 0.5, rows.ravel() + 0.5], axis=1)
 
 
 def _channels(color, channels: int) -> np.ndarray:

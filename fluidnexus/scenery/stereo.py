@@ -12,6 +12,13 @@ where it is **consistent**: lifted to 3D and projected into another view, it lan
 map puts the same surface (relative depth within ``consistency``). What no second view confirms (seen by one view
 alone, a plain surface, an occlusion boundary) has no depth here.
 
+A view is compared only with its **partners**: the views whose direction from the volume's centre lies within
+``max_angle`` of its own. A window's footprint on a surface is alike in two views only when they look at it from
+near directions; from views 90 degrees apart (a ring of four cameras) a smooth texture matches best at the wrong
+depth, and two such wrong depths agree by chance (on generated rooms, 20-40 % of the depths two views 90 degrees
+apart confirm are right, against 61-82 % at 60 degrees and 79-91 % at 45: BENCHMARKS.md, "Stereo partners"). A
+view without a partner has no depth.
+
 Everything runs at a working size (the longest image side at most ``size`` pixels), so the cost and the window's
 reach do not depend on the footage's resolution.
 """
@@ -39,17 +46,20 @@ class StereoConfig:
     size: int = 160  # longest side of the working images
     consistency: float = 0.02  # relative depth agreement between views
     min_confidence: float = 0.5  # plate pixels below this confidence are not compared
+    max_angle: float = 60.0  # degrees between two views' directions from the volume's centre, at most, to compare
 
 
 @dataclass
 class DepthMap:
     """One view at the working size: ``camera`` (the view's camera resized), ``depth`` [h, w] camera-space z in
-    metres (NaN where no other view confirms it), and the view's ``plate`` [h, w, C] and ``confidence`` [h, w]."""
+    metres (NaN where no other view confirms it), the view's ``plate`` [h, w, C] and ``confidence`` [h, w], and its
+    stereo ``partners`` (indices of the views it was compared with; none: it has no depth)."""
 
     camera: Camera
     depth: np.ndarray
     plate: np.ndarray
     confidence: np.ndarray
+    partners: tuple = ()
 
     def at(self, uv: np.ndarray, width: int, height: int) -> np.ndarray:
         """[N] the depth at pixels ``uv`` [N, 2] of the full-size image (``width`` x ``height``), nearest working
@@ -94,6 +104,15 @@ def sweep_depths(camera: Camera, lo: np.ndarray, hi: np.ndarray, cfg: StereoConf
     return 1.0 / np.linspace(1.0 / near, 1.0 / far, cfg.depths)
 
 
+def partners(cameras, lo: np.ndarray, hi: np.ndarray, cfg: StereoConfig) -> list[tuple]:
+    """Per view the indices of the other views whose direction from the volume's centre lies within
+    ``cfg.max_angle`` degrees of its own (module docstring)."""
+    center = 0.5 * (np.asarray(lo, np.float64) + np.asarray(hi, np.float64))
+    directions = np.array([(c.center - center) / np.linalg.norm(c.center - center) for c in cameras])
+    near = directions @ directions.T >= np.cos(np.radians(cfg.max_angle))
+    return [tuple(j for j in range(len(cameras)) if j != i and near[i, j]) for i in range(len(cameras))]
+
+
 def _best_half(costs: list[np.ndarray], others: int) -> np.ndarray:
     """The mean of the best half (at least one) of the finite costs per element (inf where none is finite)."""
     costs = np.sort(np.stack(costs), axis=0)
@@ -114,14 +133,14 @@ def _look_up(camera: Camera, plate: np.ndarray, confidence: np.ndarray, points: 
     return value, ok & (z.reshape(shape) > 0) & (conf[..., 0] >= cfg.min_confidence)
 
 
-def _matching_costs(ref: int, cameras, plates, confidences, depths: np.ndarray, cfg: StereoConfig) -> np.ndarray:
+def _matching_costs(ref: int, others, cameras, plates, confidences, depths: np.ndarray,
+                    cfg: StereoConfig) -> np.ndarray:
     """[D, h, w] the cost volume of view ``ref`` (module docstring): at each depth, the mean over the best half of
-    the other views of the squared colour difference averaged over the window (inf where a view sees less than
-    half the window)."""
+    the views ``others`` of the squared colour difference averaged over the window (inf where a view sees less
+    than half the window)."""
     cam = cameras[ref]
     h, w = cam.height, cam.width
     uv = _pixel_grid(cam)
-    others = [j for j in range(len(cameras)) if j != ref]
     side = 2 * cfg.window + 1
     sure = confidences[ref] >= cfg.min_confidence
     volume = np.full((len(depths), h, w), np.inf, np.float32)
@@ -140,14 +159,15 @@ def _matching_costs(ref: int, cameras, plates, confidences, depths: np.ndarray, 
     return volume
 
 
-def plane_sweep(ref: int, cameras, plates, confidences, depths: np.ndarray, cfg: StereoConfig) -> np.ndarray:
-    """[h, w] the depth of least cost of each pixel of view ``ref`` (module docstring), placed between candidates
-    by a parabola through the costs around it (in inverse depth); ``cameras``, ``plates`` [h, w, C] and
-    ``confidences`` [h, w] at the working size; NaN where nothing matches at any depth."""
+def plane_sweep(ref: int, others, cameras, plates, confidences, depths: np.ndarray, cfg: StereoConfig) -> np.ndarray:
+    """[h, w] the depth of least cost of each pixel of view ``ref`` against the views ``others`` (module
+    docstring), placed between candidates by a parabola through the costs around it (in inverse depth);
+    ``cameras``, ``plates`` [h, w, C] and ``confidences`` [h, w] at the working size; NaN where nothing matches at
+    any depth (everywhere without ``others``)."""
     cam = cameras[ref]
-    if len(cameras) < 2:
+    if not others:
         return np.full((cam.height, cam.width), np.nan)
-    cost = _matching_costs(ref, cameras, plates, confidences, depths, cfg)
+    cost = _matching_costs(ref, others, cameras, plates, confidences, depths, cfg)
     best = np.argmin(cost, axis=0)
     last = len(depths) - 1
     prev = np.take_along_axis(cost, np.clip(best - 1, 0, last)[None], 0)[0]
@@ -162,17 +182,16 @@ def plane_sweep(ref: int, cameras, plates, confidences, depths: np.ndarray, cfg:
     return np.where(confidences[ref] >= cfg.min_confidence, depth, np.nan)
 
 
-def agreeing_views(depths: list[np.ndarray], cameras, cfg: StereoConfig) -> list[np.ndarray]:
-    """Per view [h, w] the number of other views whose depth map agrees with its depth (relative difference under
-    ``cfg.consistency`` where the lifted point lands in that view)."""
+def agreeing_views(depths: list[np.ndarray], cameras, pairs: list[tuple], cfg: StereoConfig) -> list[np.ndarray]:
+    """Per view [h, w] the number of its partners (``pairs[i]``) whose depth map agrees with its depth (relative
+    difference under ``cfg.consistency`` where the lifted point lands in that view)."""
     out = []
     for i, cam in enumerate(cameras):
         h, w = cam.height, cam.width
         points = cam.unproject(_pixel_grid(cam), np.nan_to_num(depths[i].ravel(), nan=1.0))
         agree = np.zeros(h * w, int)
-        for j, other in enumerate(cameras):
-            if j == i:
-                continue
+        for j in pairs[i]:
+            other = cameras[j]
             px, z = other.project(points)
             seen, inside = sample(np.nan_to_num(depths[j], nan=-1.0)[..., None], px.reshape(h, w, 2))
             seen, inside = seen[..., 0].ravel(), inside.ravel()
@@ -206,12 +225,13 @@ def depth_maps(cameras, plates, confidences, lo, hi, cfg: StereoConfig = StereoC
         cameras: [V] the views' cameras; plates: [V] [H, W, C] in [0, 1]; confidences: [V] [H, W].
         lo, hi: the volume's corners (metres): the sweep's range follows its size.
     Returns:
-        [V] :class:`DepthMap` at the working size; a depth no other view confirms is NaN.
+        [V] :class:`DepthMap` at the working size with its partners; a depth no partner confirms is NaN.
     """
     lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
     small, small_plates, small_conf = _working(cameras, plates, confidences, cfg)
-    raw = [plane_sweep(i, small, small_plates, small_conf, sweep_depths(small[i], lo, hi, cfg), cfg)
+    pairs = partners(small, lo, hi, cfg)
+    raw = [plane_sweep(i, pairs[i], small, small_plates, small_conf, sweep_depths(small[i], lo, hi, cfg), cfg)
            for i in range(len(small))]
-    agree = agreeing_views(raw, small, cfg)
-    return [DepthMap(cam, np.where(a >= 1, d, np.nan), plate, conf)
-            for cam, d, a, plate, conf in zip(small, raw, agree, small_plates, small_conf)]
+    agree = agreeing_views(raw, small, pairs, cfg)
+    return [DepthMap(cam, np.where(a >= 1, d, np.nan), plate, conf, pair)
+            for cam, d, a, plate, conf, pair in zip(small, raw, agree, small_plates, small_conf, pairs)]

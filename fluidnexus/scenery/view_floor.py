@@ -39,20 +39,31 @@ def floor_pixels(camera, confidence: np.ndarray, floor, center: np.ndarray, radi
     return mask
 
 
+def wall_colour(camera, plate: np.ndarray, confidence: np.ndarray, floor, center: np.ndarray, radius: float,
+                near: float) -> np.ndarray | None:
+    """[C] the mean colour of the view's sure pixels whose rays do not meet ``floor`` within ``radius`` of
+    ``center``'s foot on it (its walls: what the view shows above the floor); None where under ``MIN_FLOOR`` of its
+    sure pixels are such, or the view shows too little floor within ``near`` (``radius`` is at least ``near``)."""
+    image = np.asarray(plate, np.float64).reshape(plate.shape[0], plate.shape[1], -1)
+    if floor_pixels(camera, confidence, floor, center, near) is None:
+        return None
+    sure = np.asarray(confidence) >= 0.5
+    off = sure & ~floor_pixels(camera, confidence, floor, center, radius)  # not None: it holds the near floor
+    return image[off].mean(axis=0) if off.sum() >= MIN_FLOOR * sure.sum() else None
+
+
 def floor_beyond_frame(camera, plate: np.ndarray, confidence: np.ndarray, floor, center: np.ndarray, radius: float,
-                       near: float, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
-    """(points [N, 3], colours [N, C], spacing [N], walls [C] or None): the seeds of the floor ``camera`` does not
-    see (module docstring; the lattice's spacing puts about ``count`` nodes in the disc of ``radius`` about
-    ``center``'s foot on ``floor``, in the mean colour of the floor pixels within ``near`` of it), and the mean
-    colour of the view's sure pixels whose rays do not meet the floor within ``radius`` (its walls: what the view
-    shows above the floor; None where under ``MIN_FLOOR`` of its sure pixels are such). No seeds and no walls
-    where the view shows too little floor within ``near`` (``radius`` is at least ``near``)."""
+                       near: float, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(points [N, 3], colours [N, C], spacing [N]): the seeds of the floor ``camera`` does not see (module
+    docstring; the lattice's spacing puts about ``count`` nodes in the disc of ``radius`` about ``center``'s foot
+    on ``floor``, in the mean colour of the floor pixels within ``near`` of it); none where the view shows too
+    little floor within ``near``."""
     channels = np.asarray(plate).reshape(plate.shape[0], plate.shape[1], -1).shape[-1]
     image = np.asarray(plate, np.float64).reshape(plate.shape[0], plate.shape[1], channels)
     center = np.asarray(center, np.float64)
     close = floor_pixels(camera, confidence, floor, center, near)
     if close is None:
-        return np.zeros((0, 3)), np.zeros((0, channels)), np.zeros(0), None
+        return np.zeros((0, 3)), np.zeros((0, channels)), np.zeros(0)
     normal, point = np.asarray(floor.normal, np.float64), np.asarray(floor.point, np.float64)
     foot = center - ((center - point) @ normal) * normal
     a = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
@@ -67,7 +78,4 @@ def floor_beyond_frame(camera, plate: np.ndarray, confidence: np.ndarray, floor,
     seen = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] <= camera.width) & (uv[:, 1] >= 0) & (uv[:, 1] <= camera.height)
     nodes = nodes[~seen]
     colours = np.tile(image[close].mean(axis=0), (len(nodes), 1))
-    sure = np.asarray(confidence) >= 0.5
-    off = sure & ~floor_pixels(camera, confidence, floor, center, radius)  # not None: it holds ``close``
-    walls = image[off].mean(axis=0) if off.sum() >= MIN_FLOOR * sure.sum() else None
-    return nodes, colours, np.full(len(nodes), spacing), walls
+    return nodes, colours, np.full(len(nodes), spacing)

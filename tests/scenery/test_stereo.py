@@ -43,6 +43,21 @@ def test_confirmed_depths_lie_on_the_textured_wall():
         assert np.median(error) < 0.01 and np.mean(error < 0.02) > 0.9
 
 
+def test_views_far_apart_are_not_compared():
+    """Each view is compared with the views within ``max_angle`` (60 degrees) of it, seen from the volume's centre:
+    on the arc the outer views are 80 degrees apart and skip each other; four views on a ring, 90 degrees apart,
+    have no partner and no depth at all."""
+    from fluidnexus.scenery.stereo import StereoConfig, partners
+
+    arc = [camera(a) for a in AZIMUTHS]
+    assert partners(arc, np.array(LO), np.array(HI), StereoConfig()) == [(1, 2), (0, 2, 3), (0, 1, 3), (1, 2)]
+    assert partners(arc, np.array(LO), np.array(HI), StereoConfig(max_angle=90.0))[0] == (1, 2, 3)
+    ring = [camera(a) for a in (0, 90, 180, 270)]
+    plates = [render(c) for c in ring]
+    maps = depth_maps(ring, plates, [np.ones(p.shape[:2], np.float32) for p in plates], LO, HI)
+    assert all(m.partners == () and np.isnan(m.depth).all() for m in maps)
+
+
 def test_unsure_plate_pixels_are_never_read():
     """A plate's pixels of confidence 0 may hold anything: the depth maps do not change."""
     cams, plates, confs = _views()

@@ -62,7 +62,7 @@ def test_the_floor_beyond_the_frame_is_seeded_with_the_floor_s_colour():
     plate = _room(cam)
     sure = np.ones(plate.shape[:2], np.float32)
     center, radius, near = 0.5 * (np.array(LO) + np.array(HI)), 3.0, 0.87
-    points, colors, spacing, _ = floor_beyond_frame(cam, plate, sure, _floor(), center, radius, near, 400)
+    points, colors, spacing = floor_beyond_frame(cam, plate, sure, _floor(), center, radius, near, 400)
     assert len(points) > 100
     assert np.abs(points[:, 1] - LO[1]).max() < 1e-9
     assert np.linalg.norm(points[:, [0, 2]] - center[[0, 2]], axis=1).max() <= radius + 1e-9
@@ -108,13 +108,14 @@ def test_a_view_of_floor_only_keeps_the_median_background(ti_engine):
     """A camera looking straight down sees nothing but floor: there is no wall to take the background colour from,
     so it stays the plate's median (finite), the floor beyond the frame is still seeded, and the fit runs."""
     from fluidnexus.scenery.static_layer import StaticConfig, fit_static, initial_layer
-    from fluidnexus.scenery.view_floor import floor_beyond_frame
+    from fluidnexus.scenery.view_floor import floor_beyond_frame, wall_colour
 
     down = Camera.look_at(48, 48, 40.0, TARGET + np.array([0.0, 2.5, 0.01]), TARGET)
     plate = _room(down)
     sure = [np.ones(plate.shape[:2], np.float32)]
     center = 0.5 * (np.array(LO) + np.array(HI))
-    assert floor_beyond_frame(down, plate, sure[0], _floor(), center, 3.0, 0.87, 400)[3] is None
+    assert wall_colour(down, plate, sure[0], _floor(), center, 3.0, 0.87) is None
+    assert len(floor_beyond_frame(down, plate, sure[0], _floor(), center, 3.0, 0.87, 400)[0]) > 0
     seeds = initial_layer([down], [plate], sure, LO, HI, StaticConfig(), floor=_floor())
     assert np.allclose(seeds.background, np.median(plate.reshape(-1, 3), axis=0))
     assert np.isfinite(seeds.means).all() and len(seeds) > 0
