@@ -12,13 +12,17 @@ those within 5 % of the true depth (the first surface along the pixel's ray: roo
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
 import numpy as np
 
-from benchmarks.scenes.generate import camera_at
-from benchmarks.scenes.geometry import surfaces
-from benchmarks.scenes.raymarch import static_image
-from benchmarks.scenes.spec import draw
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from benchmarks.scenes.generate import camera_at  # noqa: E402
+from benchmarks.scenes.geometry import surfaces  # noqa: E402
+from benchmarks.scenes.raymarch import static_image  # noqa: E402
+from benchmarks.scenes.spec import draw  # noqa: E402
 
 
 def as_camera(pinhole):

@@ -52,7 +52,7 @@ from ..metrics import image_loss
 from ..progress import progress
 from ..scene_scale import box_size
 from .static_hull import hull_points, in_box
-from .stereo import DepthMap, StereoConfig, depth_maps
+from .stereo import DepthMap, StereoConfig, depth_maps, pixel_centres
 from .view_floor import floor_beyond_frame, wall_colour
 from .view_objects import object_seeds
 
@@ -260,7 +260,7 @@ def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backd
     beyond = floor_beyond_frame(cameras[0], plates[0], confidences[0], floor, center, radius, near,
                                 cfg.rays * cfg.rays) if alone and floor is not None else None
     # a lone view carves the hull where its rays seed: nothing of what it shows stands in front of that
-    carving = [DepthMap(d.camera, assumed_depth(d.camera, _pixel_centres(d.camera), cameras, lo, hi, cfg, floor)
+    carving = [DepthMap(d.camera, assumed_depth(d.camera, pixel_centres(d.camera), cameras, lo, hi, cfg, floor)
                         .reshape(d.depth.shape), d.plate, d.confidence) if lonely else d
                for d, lonely in zip(depths, lone)]
     nodes, node_colors = hull_points(carving, lo, hi, background, cfg.lattice, cfg.plain,
@@ -296,11 +296,6 @@ def initial_layer(cameras, plates, confidences, lo, hi, cfg: StaticConfig, backd
     return StaticLayer(means.astype(np.float32), np.tile(0.5 * spacing[:, None], (1, 3)).astype(np.float32),
                        quats.astype(np.float32), np.full(len(means), cfg.initial_opacity, np.float32),
                        colors.astype(np.float32), background.astype(np.float32), info)
-
-
-def _pixel_centres(camera) -> np.ndarray:
-    rows, cols = np.mgrid[0:camera.height, 0:camera.width]
-    return np.stack([cols.ravel() + 0.5, rows.ravel() + 0.5], axis=1)
 
 
 def _channels(color, channels: int) -> np.ndarray:

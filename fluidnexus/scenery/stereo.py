@@ -89,7 +89,8 @@ def sample(image: np.ndarray, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 _REMAP_WIDTH = 4096  # cv2.remap takes maps of at most 32767 on a side: look-ups are laid out in rows of this
 
 
-def _pixel_grid(camera: Camera) -> np.ndarray:
+def pixel_centres(camera: Camera) -> np.ndarray:
+    """[H * W, 2] the camera's pixel centres (u, v), row by row."""
     rows, cols = np.mgrid[0:camera.height, 0:camera.width]
     return np.stack([cols + 0.5, rows + 0.5], axis=-1).reshape(-1, 2)
 
@@ -140,7 +141,7 @@ def _matching_costs(ref: int, others, cameras, plates, confidences, depths: np.n
     than half the window)."""
     cam = cameras[ref]
     h, w = cam.height, cam.width
-    uv = _pixel_grid(cam)
+    uv = pixel_centres(cam)
     side = 2 * cfg.window + 1
     sure = confidences[ref] >= cfg.min_confidence
     volume = np.full((len(depths), h, w), np.inf, np.float32)
@@ -188,7 +189,7 @@ def agreeing_views(depths: list[np.ndarray], cameras, pairs: list[tuple], cfg: S
     out = []
     for i, cam in enumerate(cameras):
         h, w = cam.height, cam.width
-        points = cam.unproject(_pixel_grid(cam), np.nan_to_num(depths[i].ravel(), nan=1.0))
+        points = cam.unproject(pixel_centres(cam), np.nan_to_num(depths[i].ravel(), nan=1.0))
         agree = np.zeros(h * w, int)
         for j in pairs[i]:
             other = cameras[j]
