@@ -156,7 +156,7 @@ def _ray_seeds(index: int, cameras, plates, confidences, depth: DepthMap, fill: 
                hi: np.ndarray, cfg: StaticConfig, generator: torch.Generator, lone: bool,
                floor=None) -> tuple[np.ndarray, np.ndarray]:
     """One seed per ray of a jittered grid through view ``index``'s image with its plate's colour (``fill`` where
-    the plate is unsure, confidence under 0.5), at the ray's stereo depth where another view confirms it. A ray
+    the plate is unsure, confidence under 0.5), at the ray's stereo depth where a partner confirms it. A ray
     without a confirmed depth seeds at its assumed depth (:func:`assumed_depth`: the floor, else the shell behind
     everything) when the view shows a textured backdrop (``lone``: a view over one that no other view can confirm,
     the only view or one without a stereo partner; or :func:`_sees_backdrop`: a part of the floor or the wall this

@@ -52,7 +52,7 @@ class StereoConfig:
 @dataclass
 class DepthMap:
     """One view at the working size: ``camera`` (the view's camera resized), ``depth`` [h, w] camera-space z in
-    metres (NaN where no other view confirms it), the view's ``plate`` [h, w, C] and ``confidence`` [h, w], and its
+    metres (NaN where no partner confirms it), the view's ``plate`` [h, w, C] and ``confidence`` [h, w], and its
     stereo ``partners`` (indices of the views it was compared with; none: it has no depth)."""
 
     camera: Camera
