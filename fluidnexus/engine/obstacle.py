@@ -5,9 +5,10 @@ body is moved to the nearest point of its surface. Two bodies:
 
 - :class:`SphereObstacle`: analytic, x <- c + r (x - c) / |x - c| when |x - c| < r.
 - :class:`GridObstacle`: a signed-distance field sampled on a regular grid (negative inside), e.g. of a
-  triangle mesh; a point with phi(x) < 0 moves by -phi(x) grad phi / |grad phi| (trilinear phi; repeated
-  ``passes`` times, which converges to the surface where phi is a true distance). Points outside the grid are
-  outside the body.
+  triangle mesh; a point with phi(x) < 0 moves by -phi(x) grad phi / |grad phi| (trilinear phi; repeated until
+  it is outside, at most ``passes`` times: one or two where phi is a true distance). Where phi is flat inside the
+  body (a ragged body carved from voxels), it steps instead toward the least deep of its six neighbours one cell
+  away. Points outside the grid are outside the body.
 - :class:`ObstacleGroup`: several bodies (a scene's declared obstacles plus an interaction's), one after another.
 
 The projection is not differentiated: a simulator step with an obstacle has no backward (docs/prediction.md).
@@ -20,7 +21,7 @@ import torch
 from . import tensors
 from .runtime import real
 
-GRID_PASSES = 3
+GRID_PASSES = 12  # at most; a point stops once outside (1-2 passes where phi is a true distance)
 
 
 @ti.kernel
@@ -58,6 +59,26 @@ def _trilinear(phi: ti.template(), g, res):
     return value, grad
 
 
+@ti.func
+def _plateau_step(phi: ti.template(), g, res, value):
+    # where phi is flat over a cell inside the body (a ragged voxel body: every corner one half-voxel deep), the
+    # gradient names no surface; step (in grid units) along the axis whose neighbour one cell away is least deep,
+    # to where phi, linear between here and there, reaches 0 (at most one cell)
+    top = ti.cast(res - 1, float)
+    best, step = value, ti.Vector([0.0, 0.0, 0.0])
+    for k in ti.static(range(3)):
+        for s in ti.static((1.0, -1.0)):
+            e = ti.Vector([0.0, 0.0, 0.0])
+            e[k] = s
+            v, _ = _trilinear(phi, ti.math.clamp(g + e, 0.0, top), res)
+            if v > best:
+                best, step = v, e
+    t = 1.0
+    if best > 0.0:
+        t = -value / (best - value)
+    return step * t
+
+
 @ti.kernel
 def project_grid(n: int, row: int, passes: int, ox: float, oy: float, oz: float, spacing: float,
                  phi: ti.template(), x: ti.template()):
@@ -67,12 +88,16 @@ def project_grid(n: int, row: int, passes: int, ox: float, oy: float, oz: float,
     for i in range(n):
         for _ in range(passes):
             g = (x[row, i] - origin) / spacing
-            inside_grid = (g >= 0).all() and (g <= ti.cast(res - 1, float)).all()
-            if inside_grid:
-                value, grad = _trilinear(phi, g, res)
-                norm = grad.norm()
-                if value < 0.0 and norm > 1e-12:
-                    x[row, i] = x[row, i] - value * grad / norm
+            if not ((g >= 0).all() and (g <= ti.cast(res - 1, float)).all()):
+                break
+            value, grad = _trilinear(phi, g, res)
+            if value >= 0.0:
+                break
+            norm = grad.norm()
+            if norm > 1e-12:
+                x[row, i] = x[row, i] - value * grad / norm
+            else:
+                x[row, i] = x[row, i] + spacing * _plateau_step(phi, g, res, value)
 
 
 @ti.func

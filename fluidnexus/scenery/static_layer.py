@@ -5,7 +5,7 @@ The fit is a small 3D Gaussian splatting optimisation (Kerbl et al. 2023):
 
 - **Initialisation** (seeds of opacity ``initial_opacity``, each as wide as its spacing): for each camera a jittered
   grid of rays through its image, each seeding one Gaussian with its plate's colour at the depth plane-sweep
-  stereo finds and one of its partners confirms (``scenery.stereo``: views within 60 degrees of it); the lattice
+  stereo finds and one of its partners confirms (``scenery.stereo``: views within 65 degrees of it); the lattice
   nodes of the volume that no view sees through (``scenery.static_hull``: a surface without texture, which the
   stereo cannot place); a ray without a confirmed depth seeds where it meets the floor if that is nearer, else on
   a shell ``shell`` half-diagonals beyond the volume's centre (and beyond every input camera, ``shell_cameras``),

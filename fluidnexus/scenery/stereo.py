@@ -16,7 +16,9 @@ A view is compared only with its **partners**: the views whose direction from th
 ``max_angle`` of its own. A window's footprint on a surface is alike in two views only when they look at it from
 near directions; from views 90 degrees apart (a ring of four cameras) a smooth texture matches best at the wrong
 depth, and two such wrong depths agree by chance (on generated rooms, 20-40 % of the depths two views 90 degrees
-apart confirm are right, against 61-82 % at 60 degrees and 79-91 % at 45: BENCHMARKS.md, "Stereo partners"). A
+apart confirm are right, against 47-76 % at 65 degrees and 79-91 % at 45: BENCHMARKS.md, "Stereo partners"). The
+bound, 65 degrees, keeps the rigs whose neighbours stand 60-63 degrees apart (ScalarFlow's train01 and train03
+either side of a held-out train02, PINF Sphere's five views; BENCHMARKS.md, "Stereo partners at 65 degrees"). A
 view without a partner has no depth.
 
 Everything runs at a working size (the longest image side at most ``size`` pixels), so the cost and the window's
@@ -46,7 +48,7 @@ class StereoConfig:
     size: int = 160  # longest side of the working images
     consistency: float = 0.02  # relative depth agreement between views
     min_confidence: float = 0.5  # plate pixels below this confidence are not compared
-    max_angle: float = 60.0  # degrees between two views' directions from the volume's centre, at most, to compare
+    max_angle: float = 65.0  # degrees between two views' directions from the volume's centre, at most, to compare
 
 
 @dataclass

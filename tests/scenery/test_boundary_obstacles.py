@@ -110,11 +110,9 @@ def test_the_boundary_moves_points_to_the_surface_it_faces(found, ti_engine):
     pts = pts[found_floor.distance(pts) < 0]
     assert len(pts) > 100
     out = PointProjector(len(pts))(found_floor, torch.as_tensor(pts)).numpy()
-    # on the surface up to the trilinear field's resolution (GRID_PASSES steps): the deepest point left 0.100 of a
-    # spacing inside since the static layer's far seeds moved beyond the cameras (2026-11-26), 0.012 before; 0.27
-    # on the VM of 2026-11-27 (the same with OpenCV 4.14 and 5.0, NumPy 2.3 and 2.4, SciPy 1.16 and 1.17: the
-    # found floor's grid follows the fit's rounding on the machine)
-    assert out[:, 1].min() > LO[1] and found_floor.distance(out).min() > -0.4 * found[0].spacing
+    # on the surface: the found floor is carved from voxels and ragged, and where its distance is flat the point steps
+    # toward the free side (engine.obstacle); measured deepest under 0.001 of a spacing (fits of seeds 0-2, 2026-12-02)
+    assert out[:, 1].min() > LO[1] and found_floor.distance(out).min() > -0.01 * found[0].spacing
 
 
 def test_unsure_plates_carve_no_body(stairs):

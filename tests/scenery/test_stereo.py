@@ -44,7 +44,7 @@ def test_confirmed_depths_lie_on_the_textured_wall():
 
 
 def test_views_far_apart_are_not_compared():
-    """Each view is compared with the views within ``max_angle`` (60 degrees) of it, seen from the volume's centre:
+    """Each view is compared with the views within ``max_angle`` (65 degrees) of it, seen from the volume's centre:
     on the arc the outer views are 80 degrees apart and skip each other; four views on a ring, 90 degrees apart,
     have no partner and no depth at all."""
     from fluidnexus.scenery.stereo import StereoConfig, partners
