@@ -60,11 +60,10 @@ def _trilinear(phi: ti.template(), g, res):
 
 
 @ti.func
-def _plateau_step(phi: ti.template(), g, res, value):
+def _plateau_step(phi: ti.template(), g, res, top, value):
     # where phi is flat over a cell inside the body (a ragged voxel body: every corner one half-voxel deep), the
     # gradient names no surface; step (in grid units) along the axis whose neighbour one cell away is least deep,
-    # to where phi, linear between here and there, reaches 0 (at most one cell)
-    top = ti.cast(res - 1, float)
+    # to where phi, linear between here and there, reaches 0 (at most one cell); ``top`` is the last node's index
     best, step = value, ti.Vector([0.0, 0.0, 0.0])
     for k in ti.static(range(3)):
         for s in ti.static((1.0, -1.0)):
@@ -85,10 +84,11 @@ def project_grid(n: int, row: int, passes: int, ox: float, oy: float, oz: float,
     # phi(x) < 0 (inside): x <- x - phi(x) grad phi / |grad phi|, the nearest surface point of a distance field
     res = ti.Vector([phi.shape[0], phi.shape[1], phi.shape[2]])
     origin = ti.Vector([ox, oy, oz])
+    top = ti.cast(res - 1, float)
     for i in range(n):
         for _ in range(passes):
             g = (x[row, i] - origin) / spacing
-            if not ((g >= 0).all() and (g <= ti.cast(res - 1, float)).all()):
+            if not ((g >= 0).all() and (g <= top).all()):
                 break
             value, grad = _trilinear(phi, g, res)
             if value >= 0.0:
@@ -97,7 +97,7 @@ def project_grid(n: int, row: int, passes: int, ox: float, oy: float, oz: float,
             if norm > 1e-12:
                 x[row, i] = x[row, i] - value * grad / norm
             else:
-                x[row, i] = x[row, i] + spacing * _plateau_step(phi, g, res, value)
+                x[row, i] = x[row, i] + spacing * _plateau_step(phi, g, res, top, value)
 
 
 @ti.func
