@@ -1,6 +1,7 @@
 """Sources of any direction: the emitter disk, the inflow velocity, the emission window, and the source finder on
 a sideways jet rendered from three cameras."""
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -124,6 +125,30 @@ def test_source_finder_finds_a_sideways_jet(tmp_path):
     declared = Source((0.3, 0.0, 0.0), 0.02, direction=tuple(direction / np.linalg.norm(direction)), speed=0.9)
     kept = find_source(replace(scene, source=declared), replace(obs, first=0), 0.01, 0.01, declared).source
     assert kept == declared  # frame 0 has no smoke: the declared source as it is
+
+
+def test_smoke_in_view_from_the_first_frame_moving_near_up_is_a_plume():
+    """Smoke in view from the run's first frame (its start not filmed) moving 20 degrees from up is a developed
+    plume: its inflow points up, its foot the lowest smoke (at the nozzle). The same smoke whose start is filmed,
+    and smoke moving 60 degrees from up (a jet), keep the measured direction."""
+    from fluidnexus.recon.source_finder import PLUME_CONE_DEG, UP
+
+    cameras = tuple(Camera.look_at(96, 96, 110.0, eye, (0.0, 0.15, 0.0))
+                    for eye in ((0.0, 0.3, 1.0), (1.0, 0.35, 0.1), (-0.7, 0.45, -0.7)))
+    views = tuple(View(f"cam{i}", "input", c, f"cam{i}.mp4") for i, c in enumerate(cameras))
+    scene = Scene(Path("."), 30.0, 12, views, Volume((-0.35, -0.1, -0.35), (0.35, 0.5, 0.35)), None)
+    for tilt, start in ((20.0, 0), (20.0, 2), (60.0, 0)):
+        direction = np.array([np.sin(np.radians(tilt)), np.cos(np.radians(tilt)), 0.0])
+        obs = Observations(tuple(v.name for v in views), cameras, 0, _jet_video(cameras, direction, start, 12))
+        found = find_source(scene, obs, 0.01, 0.01, Source((0.0, -0.1, 0.0), 0.02))
+        assert abs(found.record["motion_degrees_from_up"] - tilt) < 12, found.record
+        if tilt < PLUME_CONE_DEG and start == 0:
+            assert found.source.direction == UP and found.record["degrees_from_up"] == 0.0, found.record
+            assert "a developed plume" in found.record["direction"]
+        else:
+            assert _angle(found.source.direction, direction) < 12 and found.record["direction"] == "centroid motion"
+        assert np.linalg.norm(np.asarray(found.source.center)) < 0.04, found.source  # the nozzle is at the origin
+        assert found.source.speed > 0.3
 
 
 def test_initial_look_is_fitted_where_the_smoke_first_shows(tmp_path, ti_engine):
