@@ -44,7 +44,7 @@ FOOT_PERCENTILE = 2.0
 FRONT_PERCENTILE = 98.0
 #: Where the smoke is in view from the run's first frame, a motion within this many degrees of up is a developed
 #: plume's, and its inflow points up: PINF Sphere's plume (under a ball) moves 18.5 degrees from up, the ScalarFlow
-#: sample's 16.2, where both rise from an upward inflow; a jet moves far outside it (PINF Game's, whose start is
+#: sample's 15.6, where both rise from an upward inflow; a jet moves far outside it (PINF Game's, whose start is
 #: filmed, 106) (BENCHMARKS.md, "A developed plume's inflow points up").
 PLUME_CONE_DEG = 40.0
 
